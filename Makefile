@@ -1,0 +1,42 @@
+# Two entry points that work on a fresh machine: `make run` and `make test`.
+# Both create ./.venv, install the package with its test extras, and (when root and missing)
+# the system graphviz package used to render diagram pictures.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN     = $(VENV)/bin
+STAMP   = $(VENV)/.installed
+
+.PHONY: setup system-deps run test diagrams clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --upgrade pip >/dev/null
+	$(BIN)/pip install -e '.[test]'
+	touch $(STAMP)
+
+# graphviz is optional (.dot is always written; .svg needs `dot`).
+system-deps:
+	@command -v dot >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get install -y graphviz >/dev/null 2>&1 || \
+	     (apt-get update >/dev/null 2>&1 && apt-get install -y graphviz >/dev/null 2>&1)) || \
+	    echo "note: could not install graphviz; diagrams are written as .dot only"; \
+	  else echo "note: graphviz not installed; diagrams are written as .dot only"; fi; }
+
+setup: system-deps $(STAMP)
+
+# The main job: the closed-loop simulation of the built-in default scenario, then the diagrams.
+run: setup
+	$(BIN)/handeye-drake simulate --out out/simulate
+	$(BIN)/python diagrams/closed_loop.py
+	$(BIN)/python diagrams/calibrator_alone.py
+
+diagrams: setup
+	$(BIN)/python diagrams/closed_loop.py
+	$(BIN)/python diagrams/calibrator_alone.py
+
+test: setup
+	$(BIN)/python -m pytest
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

@@ -1,0 +1,33 @@
+"""handeye_drake: on-line hand-eye calibration embedded in visual servoing, as Drake systems.
+
+The names exported here are the estimation core (numpy/scipy only; importing them does not load
+Drake). Frames: robot poses ``X_BE`` (end-effector in base, OpenCV's gripper→base), camera poses
+``X_CT`` (target in camera, OpenCV's target→camera); motions A = X_{C(k−1)C(k)}, B = X_{E(k−1)E(k)};
+the paper's X is ``X_CE``, the camera-on-the-hand transform is ``X_EC`` = inv(X_CE).
+The Drake systems live in ``handeye_drake.systems`` and the closed loop in
+``handeye_drake.diagram``.
+"""
+
+from .estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
+from .estimation.kalman import HandEyeKalmanFilter, kalman_step, measurement_covariance
+from .estimation.linear_model import linear_system, relative_motions
+from .estimation.orthonormalize import orthonormalize
+from .estimation.solvers import METHODS as SOLVER_METHODS
+from .estimation.solvers import calibrate_hand_eye, solve_ax_xb
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "HandEyeKalmanFilter",
+    "SOLVER_METHODS",
+    "calibrate_hand_eye",
+    "kalman_step",
+    "linear_system",
+    "measurement_covariance",
+    "orthonormalize",
+    "relative_motions",
+    "rotation_error_deg",
+    "rotation_error_quat",
+    "solve_ax_xb",
+    "translation_error_rel",
+]

@@ -1,0 +1,1 @@
+"""Estimation core: pure numpy/scipy, no Drake import needed."""
