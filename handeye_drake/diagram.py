@@ -167,7 +167,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         init_method=k.init_method, P0=np.asarray(k.P0_diagonal, dtype=float),
         process_cov=k.process_noise, rotation_sigma=k.rotation_sigma,
         translation_sigma=k.translation_sigma, noise_model=ESTIMATORS[k.estimator],
-        orthonormalization=k.orthonormalization))
+        orthonormalization=k.orthonormalization, min_rotation_deg=k.min_rotation_deg))
     builder.Connect(sampler.get_output_port(), calibrator.get_X_BE_input_port())
     builder.Connect(camera.GetOutputPort("X_CT_measured"), calibrator.get_X_CT_input_port())
     builder.Connect(servo.GetOutputPort("phase"), calibrator.get_phase_input_port())
@@ -200,6 +200,8 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         "X_WC": camera.GetOutputPort("X_WC"),
         "V_WE_E_command": servo.GetOutputPort("V_WE_E_command"),
         "ik_status": driver.GetOutputPort("status"),
+        "X_BE_sampled": sampler.get_output_port(),
+        "X_CT_measured": camera.GetOutputPort("X_CT_measured"),
     }.items():
         logger = LogVectorOutput(port, builder, log_period)
         logger.set_name(f"log_{name}")
@@ -253,6 +255,8 @@ class ScenarioResult:
     servo_status: np.ndarray
     ik_status: np.ndarray
     X_WC: np.ndarray                  # (K, 4, 4) true camera poses
+    X_BE_samples: np.ndarray          # (K, 4, 4) robot poses sampled at the camera trigger
+    X_CT_samples: np.ndarray          # (K, 4, 4) the matching measured target poses
     servo_start_time: float
     sim_time: float
     wall_time: float
@@ -321,4 +325,67 @@ def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         calibrator_status=data["calibrator_status"], servo_status=data["servo_status"][:, 0],
         ik_status=data["ik_status"][:, 0],
         X_WC=np.array([vector_to_pose(v) for v in data["X_WC"]]),
+        X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
+        X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),
         servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall)
+
+
+@dataclass
+class CalibratorBench:
+    """The calibrator alone, fed by ``PaperMotionSource``."""
+    diagram: Diagram
+    source: object
+    calibrator: HandEyeCalibrator
+    X_CE_true: np.ndarray
+    loggers: dict = field(default_factory=dict)
+
+
+def build_calibrator_bench(X_EC_true, period: float = 0.1, rotation_sigma: float = 2 * np.pi / 100,
+                           translation_sigma: float = 1.0, pose_noise_model: str = "paper",
+                           camera_rotation_sigma: float = 0.01,
+                           camera_translation_sigma: float = 0.1,
+                           self_calibration_angle: float = np.radians(30.0),
+                           estimator: str = "paper_full", init_method: str = "daniilidis",
+                           P0=None) -> CalibratorBench:
+    """A diagram of the calibrator fed by PAPER §8's random small motions (no arm, no servo):
+    two self-calibration rotations of ``self_calibration_angle`` about E's x then y axes, then
+    random motions. The filter is tuned to the camera noise it is given."""
+    from .estimation.se3 import make_transform, rotation_exp
+    from .systems.motion_source import PaperMotionSource
+
+    X_EC_true = np.asarray(X_EC_true, dtype=float)
+    scale = max(1.0, float(np.linalg.norm(X_EC_true[:3, 3])))
+    X_BE0 = np.eye(4)
+    X_BT = X_BE0 @ X_EC_true @ make_transform(np.eye(3), [0.0, 0.0, 5.0 * scale])
+    motions = [make_transform(rotation_exp([self_calibration_angle, 0.0, 0.0]), [0.0, 0.0, 0.0]),
+               make_transform(rotation_exp([0.0, self_calibration_angle, 0.0]), [0.0, 0.0, 0.0])]
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem("motion_source", PaperMotionSource(
+        X_EC_true, X_BT, X_BE0, motions, period, rotation_sigma, translation_sigma,
+        pose_noise_model, camera_rotation_sigma, camera_translation_sigma))
+    for name in ("motion_noise", "pose_noise"):
+        port = source.GetInputPort(name)
+        noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
+            RandomDistribution.kGaussian, port.size(), period))
+        builder.Connect(noise.get_output_port(), port)
+    if estimator not in ESTIMATORS:
+        raise ValueError(f"estimator: expected one of {tuple(ESTIMATORS)}, got {estimator!r}")
+    calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
+        period=period, X_CE_initial_guess=np.eye(4), init_method=init_method,
+        P0=P0, rotation_sigma=camera_rotation_sigma,
+        translation_sigma=camera_translation_sigma,
+        noise_model=ESTIMATORS[estimator]))
+    builder.Connect(source.GetOutputPort("X_BE"), calibrator.get_X_BE_input_port())
+    builder.Connect(source.GetOutputPort("X_CT_measured"), calibrator.get_X_CT_input_port())
+    builder.Connect(source.GetOutputPort("phase"), calibrator.get_phase_input_port())
+    loggers = {}
+    for name, port in {"X_EC_estimate": calibrator.get_X_EC_output_port(),
+                       "X_EC_two_motion": calibrator.get_two_motion_output_port(),
+                       "status": calibrator.get_status_output_port()}.items():
+        loggers[name] = LogVectorOutput(port, builder, period)
+        loggers[name].set_name(f"log_{name}")
+    builder.ExportOutput(calibrator.get_X_EC_output_port(), "X_EC_estimate")
+    diagram = builder.Build()
+    diagram.set_name("handeye_calibrator_bench")
+    return CalibratorBench(diagram=diagram, source=source, calibrator=calibrator,
+                           X_CE_true=inverse(X_EC_true), loggers=loggers)

@@ -74,7 +74,7 @@ class CameraConfig:
 @dataclass
 class TargetConfig:
     """Target frame T in world and its points p_TQ (m)."""
-    X_WT: Transform = field(default_factory=lambda: _transform([-0.47, -0.10, 0.0], [0, 0, 105]))
+    X_WT: Transform = field(default_factory=lambda: _transform([-0.47, -0.10, 0.0], [0, 0, 20]))
     points: List[List[float]] = field(default_factory=lambda: [
         [-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [0.05, 0.05, 0.0], [-0.05, 0.05, 0.0],
         [0.0, 0.0, 0.03]])
@@ -118,6 +118,9 @@ class CalibratorConfig:
     P0_diagonal: List[float] = field(default_factory=lambda: [1e-3] * 9 + [1e-3] * 3)
     process_noise: float = 0.0
     orthonormalization: str = "svd"
+    #: Pairs are formed once the robot has turned this much since the last used sample (0: every
+    #: sample, as the paper). Small pairs carry mostly noise, which biases the linear model.
+    min_rotation_deg: float = 0.0
 
 
 @dataclass
@@ -147,7 +150,7 @@ class Scenario:
         check_positive(self.servo.max_linear_speed, "servo.max_linear_speed")
         for name in ("pixel_sigma", "rotation_sigma", "translation_sigma"):
             check_positive(getattr(self.camera, name), f"camera.{name}", allow_zero=True)
-        for name in ("rotation_sigma", "translation_sigma", "process_noise"):
+        for name in ("rotation_sigma", "translation_sigma", "process_noise", "min_rotation_deg"):
             check_positive(getattr(self.calibrator, name), f"calibrator.{name}", allow_zero=True)
         if len(self.calibrator.P0_diagonal) != 12 or not all(
                 np.isfinite(v) and v > 0 for v in self.calibrator.P0_diagonal):

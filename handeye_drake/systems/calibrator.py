@@ -27,7 +27,7 @@ from ..estimation.kalman import (NOISE_MODELS, kalman_step, measurement_covarian
                                  transform_from_state)
 from ..estimation.linear_model import linear_system_matrices, state_from_transform
 from ..estimation.orthonormalize import METHODS as ORTHONORMALIZATION_METHODS
-from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from ..estimation.se3 import inverse, pose_to_vector, rotation_angle, vector_to_pose
 from ..estimation.solvers import METHODS as SOLVER_METHODS
 from ..estimation.solvers import solve_ax_xb
 from ..estimation.validation import as_transform, check_covariance, check_positive
@@ -65,7 +65,7 @@ class HandEyeCalibrator(LeafSystem):
                  init_method: str = "daniilidis", P0=None, process_cov=None,
                  rotation_sigma: float = 0.01, translation_sigma: float = 0.001,
                  noise_model: str = "paper", orthonormalization: str = "svd",
-                 offset: float | None = None):
+                 min_rotation_deg: float = 0.0, offset: float | None = None):
         super().__init__()
         self._period = check_positive(period, "period")
         self._offset = 0.5 * self._period if offset is None else check_positive(
@@ -92,6 +92,8 @@ class HandEyeCalibrator(LeafSystem):
         self._P0 = check_covariance(np.eye(12) if P0 is None else P0, "P0", 12)
         self._G1 = check_covariance(0.0 if process_cov is None else process_cov, "process_cov", 12)
         self._x_guess = state_from_transform(X0)
+        self._min_rotation = np.radians(check_positive(min_rotation_deg, "min_rotation_deg",
+                                                       allow_zero=True))
 
         self._X_BE_port = self.DeclareVectorInputPort("X_BE", 12)
         self._X_CT_port = self.DeclareVectorInputPort("X_CT_measured", 12)
@@ -182,6 +184,12 @@ class HandEyeCalibrator(LeafSystem):
         elif has_prev:
             prev = context.get_discrete_state(self._prev_index).get_value()
             B = inverse(vector_to_pose(prev[:12])) @ vector_to_pose(X_BE_vec)
+            if rotation_angle(B[:3, :3]) < self._min_rotation:
+                # Too little motion since the last used sample: keep that sample as the start of
+                # the next pair (the pair would carry mostly noise, which biases the linear model).
+                discrete_state.get_mutable_vector(self._info_index).SetFromVector(
+                    [mode, num_keys, has_prev, num_updates])
+                return
             # The measured camera pose may be non-orthonormal (paper noise): general inverse.
             A = vector_to_pose(prev[12:]) @ np.linalg.inv(vector_to_pose(X_CT_vec))
             x = context.get_discrete_state(self._x_index).get_value()

@@ -2,7 +2,9 @@
 
 It first executes the given self-calibration motions (one per sample, with ``phase`` 0, 1, …),
 then random small robot motions (roll-pitch-yaw ~ N(0, rotation_sigma²), translation ~
-N(0, translation_sigma²)), and measures the target pose with the camera's noise model. It feeds
+N(0, translation_sigma²)). As in the paper's simulations, the noise is on the measured camera
+*motion* A (the camera works as visual odometry): A_meas = noise(X_CE B X_CE⁻¹), and the output
+pose is chained so that X_CT_meas[k−1] X_CT_meas[k]⁻¹ = A_meas exactly. It feeds
 ``HandEyeCalibrator`` directly, to study the calibrator alone.
 """
 
@@ -27,8 +29,9 @@ class PaperMotionSource(LeafSystem):
         self_calibration_motions: robot motions B (4×4, in E) executed first, one per sample.
         rotation_sigma: std of the roll-pitch-yaw angles of each random motion (rad).
         translation_sigma: std of each translation coordinate of each random motion.
-        pose_noise_model, camera_rotation_sigma, camera_translation_sigma: the camera's noise,
-            as ``apply_pose_noise``.
+        pose_noise_model, camera_rotation_sigma, camera_translation_sigma: the noise of the
+            measured camera motion A, as ``apply_pose_noise`` ("paper": additive on the
+            coefficients of R_A).
 
     Input ports: ``motion_noise`` (6, Gaussian random), ``pose_noise`` (12, Gaussian random).
     Output ports: ``X_BE`` (12), ``X_CT_measured`` (12), ``phase`` (1: k during
@@ -82,8 +85,11 @@ class PaperMotionSource(LeafSystem):
             B = make_transform(rotation_from_rpy(self._rotation_sigma * n[:3]),
                                self._translation_sigma * n[3:])
         X_BE = X_BE @ B
-        X_CT = inverse(X_BE @ self._X_EC) @ self._X_BT
-        X_CT_measured = apply_pose_noise(X_CT, self._pose_noise_port.Eval(context), *self._noise)
+        X_CE = inverse(self._X_EC)
+        A = apply_pose_noise(X_CE @ B @ self._X_EC, self._pose_noise_port.Eval(context),
+                             *self._noise)
+        X_CT_prev = make_transform(s[12:21].reshape(3, 3), s[21:24])
+        X_CT_measured = np.linalg.inv(A) @ X_CT_prev
         phase = min(k + 1, len(self._motions))
         discrete_state.get_mutable_vector(self._state_index).SetFromVector(np.concatenate(
             [pose_to_vector(X_BE), pose_to_vector(X_CT_measured), [phase, k + 1]]))

@@ -1,0 +1,14 @@
+"""The full closed loop of the default scenario: arm, camera, IBVS and Kalman calibrator.
+
+Run: ``python diagrams/closed_loop.py`` — writes closed_loop.dot (and .svg with graphviz) here.
+"""
+from pathlib import Path
+
+from handeye_drake.diagram import build_diagram
+from handeye_drake.diagram_render import render_diagram
+from handeye_drake.scenario import load_scenario
+
+if __name__ == "__main__":
+    loop = build_diagram(load_scenario())
+    written = render_diagram(loop.diagram, Path(__file__).with_name("closed_loop"))
+    print("wrote: " + ", ".join(map(str, written)))

@@ -1,0 +1,1 @@
+"""Drake LeafSystems and diagram builders of the hand-eye servoing simulation."""

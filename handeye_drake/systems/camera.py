@@ -1,0 +1,186 @@
+"""Simulated hand-eye camera: projects a rigid target of point features and measures its pose.
+
+The math lives in ``handeye_drake.vision.camera_model``; this module only wraps it as a sampled
+Drake system with its noise on random input ports.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.systems.framework import LeafSystem
+
+from handeye_drake.estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from handeye_drake.estimation.validation import (
+    ROTATION_TOLERANCE,
+    as_matrix,
+    as_transform,
+    check_positive,
+    rotation_defect,
+)
+from handeye_drake.vision.camera_model import (
+    MIN_DEPTH,
+    POSE_NOISE_MODELS,
+    CameraIntrinsics,
+    as_points,
+    apply_pose_noise,
+    project_points,
+    target_visibility,
+)
+
+_IDENTITY_POSE = pose_to_vector(np.eye(4))
+
+
+class HandEyeCamera(LeafSystem):
+    """A camera rigidly mounted on the end-effector (pose X_EC), looking at a fixed target T
+    (pose X_WT) made of N points p_TQ. Every ``period`` seconds (and at initialization) it samples
+    the end-effector pose and holds, until the next sample:
+
+    * the noisy pixels of the points (noise N(0, pixel_sigma²) per coordinate, on visible points),
+    * which points are visible (in front of the camera and inside the image),
+    * a noisy measurement of the target pose X_CT (what a pose-from-image estimator would return;
+      the camera motion A of PAPER.md §2 is built from two of them),
+    * the true camera pose X_WC (for logging and visualization).
+
+    Invisible points are reported through ``visible``; their ``features`` entries hold the
+    noiseless projection if the point is in front of the camera, else 0.
+
+    Input ports:
+        X_WE (12): end-effector pose in world, [vec_row(R); p] (length unit of the poses).
+        pixel_noise (2N, random Gaussian): standard-normal samples, scaled by pixel_sigma inside.
+        pose_noise (12, random Gaussian): standard-normal samples; the first 9 ("paper") or the
+            first 3 ("so3") perturb the rotation, the last 3 the translation (see
+            ``apply_pose_noise``).
+    The noise ports only need a connection (e.g. ``AddRandomInputs(period, builder)``) when their
+    sigma is non-zero. Use a RandomSource sampling interval equal to ``period`` so that every
+    image gets a fresh sample.
+
+    Output ports (all read the discrete state):
+        features (2N): noisy pixels [u0, v0, u1, v1, …] (px).
+        visible (N): 1.0 if the point is visible, else 0.0.
+        X_CT_measured (12): noisy pose of T in C, [vec_row(R); p]; R is not orthonormal under the
+            "paper" noise model.
+        X_WC (12): true pose of C in W.
+    """
+
+    def __init__(self, intrinsics: CameraIntrinsics, X_EC, p_TQ, X_WT, period: float,
+                 pixel_sigma: float = 0.0, pose_noise_model: str = "paper",
+                 rotation_sigma: float = 0.0, translation_sigma: float = 0.0):
+        LeafSystem.__init__(self)
+        if not isinstance(intrinsics, CameraIntrinsics):
+            raise ValueError(f"intrinsics: expected a CameraIntrinsics, got "
+                             f"{type(intrinsics).__name__}")
+        self._intrinsics = intrinsics
+        self._X_EC = as_transform(X_EC, "X_EC")
+        self._X_WT = as_transform(X_WT, "X_WT")
+        self._p_TQ = as_points(p_TQ, "p_TQ", 3)
+        self._period = check_positive(period, "period")
+        self._pixel_sigma = check_positive(pixel_sigma, "pixel_sigma", allow_zero=True)
+        if pose_noise_model not in POSE_NOISE_MODELS:
+            raise ValueError(f"pose_noise_model: unknown model {pose_noise_model!r}, expected "
+                             f"one of {POSE_NOISE_MODELS}")
+        self._pose_noise_model = pose_noise_model
+        self._rotation_sigma = check_positive(rotation_sigma, "rotation_sigma", allow_zero=True)
+        self._translation_sigma = check_positive(translation_sigma, "translation_sigma",
+                                                 allow_zero=True)
+        n = self._p_TQ.shape[0]
+
+        self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
+        self._pixel_noise_port = self.DeclareVectorInputPort(
+            "pixel_noise", 2 * n, RandomDistribution.kGaussian)
+        self._pose_noise_port = self.DeclareVectorInputPort(
+            "pose_noise", 12, RandomDistribution.kGaussian)
+
+        # One discrete group per output, so each output depends on its own group only.
+        self._features_index = self.DeclareDiscreteState(2 * n)
+        self._visible_index = self.DeclareDiscreteState(n)
+        self._X_CT_index = self.DeclareDiscreteState(_IDENTITY_POSE)
+        self._X_WC_index = self.DeclareDiscreteState(_IDENTITY_POSE)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateImage)
+        self.DeclareInitializationDiscreteUpdateEvent(self._UpdateImage)
+
+        self._features_port = self.DeclareStateOutputPort("features", self._features_index)
+        self._visible_port = self.DeclareStateOutputPort("visible", self._visible_index)
+        self._X_CT_port = self.DeclareStateOutputPort("X_CT_measured", self._X_CT_index)
+        self._X_WC_port = self.DeclareStateOutputPort("X_WC", self._X_WC_index)
+
+    # Read-only accessors (numpy copies) for scenarios and tests.
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        return self._intrinsics
+
+    @property
+    def num_points(self) -> int:
+        return self._p_TQ.shape[0]
+
+    @property
+    def period(self) -> float:
+        return self._period
+
+    @property
+    def p_TQ(self) -> np.ndarray:
+        return self._p_TQ.copy()
+
+    @property
+    def X_EC(self) -> np.ndarray:
+        return self._X_EC.copy()
+
+    @property
+    def X_WT(self) -> np.ndarray:
+        return self._X_WT.copy()
+
+    def CheckTargetVisible(self, X_WE, min_visible: int | None = None) -> np.ndarray:
+        """Returns the N visibility flags at end-effector pose X_WE (4×4 or RigidTransform) and
+        raises ValueError if fewer than ``min_visible`` points (default: all) are visible, saying
+        which points are behind the camera or outside the image."""
+        uv, in_front, in_image = target_visibility(self._intrinsics, X_WE, self._X_EC,
+                                                   self._p_TQ, self._X_WT)
+        n = self.num_points
+        min_visible = n if min_visible is None else int(min_visible)
+        if int(in_image.sum()) < min_visible:
+            behind = np.flatnonzero(~in_front).tolist()
+            outside = np.flatnonzero(in_front & ~in_image).tolist()
+            raise ValueError(
+                f"X_WE: only {int(in_image.sum())} of {n} target points are visible, need "
+                f"{min_visible}; behind the camera: {behind}; outside the "
+                f"{self._intrinsics.width}×{self._intrinsics.height} image: {outside} "
+                f"(pixels {np.round(uv[outside], 1).tolist()})")
+        return in_image
+
+    def _UpdateImage(self, context, discrete_state):
+        x = self._X_WE_port.Eval(context)
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
+                             f"values at t = {context.get_time()}")
+        X_WE = vector_to_pose(x)
+        if rotation_defect(X_WE[:3, :3]) > ROTATION_TOLERANCE:
+            raise ValueError(f"X_WE input of {self.get_name()!r}: rotation block is not a "
+                             f"rotation matrix at t = {context.get_time()}: {x[:9].tolist()}")
+        X_WC = X_WE @ self._X_EC
+        X_CT = inverse(X_WC) @ self._X_WT
+        p_CQ = self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3]
+        uv, in_front, in_image = project_points(p_CQ, self._intrinsics, MIN_DEPTH)
+
+        if self._pixel_sigma > 0:
+            noise = self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
+            uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
+        if self._rotation_sigma > 0 or self._translation_sigma > 0:
+            noise = self._EvalNoise(self._pose_noise_port, context, 12)
+            X_CT_measured = apply_pose_noise(X_CT, noise, self._pose_noise_model,
+                                             self._rotation_sigma, self._translation_sigma)
+        else:
+            X_CT_measured = X_CT
+
+        discrete_state.get_mutable_vector(self._features_index).SetFromVector(uv.reshape(-1))
+        discrete_state.get_mutable_vector(self._visible_index).SetFromVector(
+            in_image.astype(float))
+        discrete_state.get_mutable_vector(self._X_CT_index).SetFromVector(
+            pose_to_vector(X_CT_measured))
+        discrete_state.get_mutable_vector(self._X_WC_index).SetFromVector(pose_to_vector(X_WC))
+
+    def _EvalNoise(self, port, context, size):
+        if not port.HasValue(context):
+            raise ValueError(
+                f"{port.get_name()} input of {self.get_name()!r} is not connected but its sigma "
+                f"is non-zero; connect a RandomSource (e.g. AddRandomInputs(period, builder))")
+        return as_matrix(port.Eval(context), f"{port.get_name()} input", (size,))

@@ -1,0 +1,224 @@
+"""Visual-servo controller with a self-calibration prelude (PAPER.md §1 and §7).
+
+The control law itself is ``handeye_drake.vision.camera_model.ibvs_twist``; this module sequences
+the phases and wraps it as a sampled Drake system.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from handeye_drake.estimation.se3 import vector_to_pose
+from handeye_drake.estimation.validation import as_matrix, check_positive, rotation_defect
+from handeye_drake.vision.camera_model import (
+    MIN_DEPTH,
+    CameraIntrinsics,
+    SelfCalibrationMotion,
+    as_points,
+    default_self_calibration_motions,
+    ibvs_twist,
+    saturate_twist,
+)
+
+__all__ = [
+    "STATUS_INVALID_ESTIMATE",
+    "STATUS_OK",
+    "STATUS_TOO_FEW_VISIBLE",
+    "SelfCalibrationMotion",
+    "VisualServoController",
+    "default_self_calibration_motions",
+]
+
+STATUS_OK = 0
+#: Fewer than ``min_visible`` usable points (visible and in front): in the servo phase the command
+#: is zero. Also reported during self-calibration, whose command does not depend on the image.
+STATUS_TOO_FEW_VISIBLE = 1
+#: Servo phase only: the X_CE_estimate input's rotation block is far from a rotation (e.g. a
+#: calibrator that is not initialized yet outputs zeros); the command is zero.
+STATUS_INVALID_ESTIMATE = 2
+
+#: max(‖RᵀR − I‖_F, |det R − 1|) above which the hand-eye estimate is refused (STATUS 2). Loose on
+#: purpose: a slightly non-orthonormal estimate still gives a usable interaction matrix.
+ESTIMATE_ROTATION_TOLERANCE = 0.25
+
+
+class VisualServoController(LeafSystem):
+    """Sampled image-based visual servo on N point features, preceded by predefined
+    self-calibration motions.
+
+    Phases (by time, starting at t = 0): phase k < M executes ``self_calibration_motions[k]``
+    (constant twist ``motion.twist_E()`` during ``motion.duration``, one after the other); from
+    t = Σ durations on, phase M is the servo law of PAPER.md §7,
+
+        V_E = −λ · pinv(L_E) (s − s*),   L_E = end_effector_interaction_matrix(s, Z, K, X_CE)
+
+    over the usable points (visible, depth > 0), with depths Z_i = (X_CT p_TQi)_z from the measured
+    target pose and X_CE the current hand-eye estimate from the calibrator. The servo twist is
+    saturated (whole twist scaled, direction kept) to ‖ω‖ ≤ max_angular_speed and
+    ‖v‖ ≤ max_linear_speed; the self-calibration twists must already satisfy these limits.
+    Every self-calibration duration must be a whole number of periods, so each motion is executed
+    exactly (angle reached at the phase boundary).
+
+    The command computed at a sample t_k is held on (t_k, t_{k+1}] (Drake discrete-update
+    semantics). With the camera at the same rate the controller uses the previous sample's image,
+    and a sampled arm at the same rate applies the command one sample later: e_{k+1} =
+    e_k − λ·period·e_{k−2}, stable for λ·period < 0.618 (keep it ≲ 0.2 for a smooth decay). At
+    t = 0 no image exists yet, so the initialization sample reports STATUS_TOO_FEW_VISIBLE.
+
+    Input ports:
+        features (2N): current pixels [u0, v0, u1, v1, …] (px).
+        visible (N): 1.0 for visible points (> 0.5 counts as visible).
+        X_CT_measured (12): measured target pose in C, [vec_row(R); p]; gives the depths.
+        X_CE_estimate (12): hand-eye estimate (E in C, the paper's X), [vec_row(R); p]; only read
+            in the servo phase.
+
+    Output ports (all read the discrete state):
+        V_WE_E_command (6): commanded end-effector twist [ω (rad/s); v (length/s)] expressed in E.
+        phase (1): phase index as a float (0..M−1 self-calibration, M servo).
+        feature_error (1): RMS over usable points of ‖s_i − s*_i‖ (px); held when no point is
+            usable.
+        status (1): STATUS_OK (0), STATUS_TOO_FEW_VISIBLE (1) or STATUS_INVALID_ESTIMATE (2).
+    """
+
+    def __init__(self, intrinsics: CameraIntrinsics, p_TQ, desired_features, gain: float,
+                 period: float, self_calibration_motions=(), max_angular_speed: float = 1.0,
+                 max_linear_speed: float = 0.5, min_visible: int = 3):
+        LeafSystem.__init__(self)
+        if not isinstance(intrinsics, CameraIntrinsics):
+            raise ValueError(f"intrinsics: expected a CameraIntrinsics, got "
+                             f"{type(intrinsics).__name__}")
+        self._intrinsics = intrinsics
+        self._p_TQ = as_points(p_TQ, "p_TQ", 3)
+        n = self._p_TQ.shape[0]
+        if n < 3:
+            raise ValueError(f"p_TQ: a 6-DOF servo needs at least 3 points, got {n}")
+        self._desired = as_matrix(np.reshape(desired_features, -1)
+                                  if np.size(desired_features) == 2 * n else desired_features,
+                                  "desired_features", (2 * n,))
+        self._gain = check_positive(gain, "gain")
+        self._period = check_positive(period, "period")
+        self._max_w = self._check_speed_limit(max_angular_speed, "max_angular_speed")
+        self._max_v = self._check_speed_limit(max_linear_speed, "max_linear_speed")
+        try:
+            valid = (not isinstance(min_visible, bool) and float(min_visible).is_integer()
+                     and 3 <= int(min_visible) <= n)
+        except (TypeError, ValueError, OverflowError):
+            valid = False
+        if not valid:
+            raise ValueError(f"min_visible: must be an integer in [3, {n}] (3 points are needed "
+                             f"for a 6-DOF servo, there are {n}), got {min_visible!r}")
+        self._min_visible = int(min_visible)
+
+        self._motions = list(self_calibration_motions)
+        self._motion_twists = []
+        self._phase_end_steps = []  # cumulative number of periods at the end of each motion
+        steps = 0
+        for k, motion in enumerate(self._motions):
+            name = f"self_calibration_motions[{k}]"
+            if not isinstance(motion, SelfCalibrationMotion):
+                raise ValueError(f"{name}: expected a SelfCalibrationMotion, got "
+                                 f"{type(motion).__name__}")
+            ratio = motion.duration / self._period
+            if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio) or round(ratio) < 1:
+                raise ValueError(f"{name}.duration: must be a positive whole number of periods "
+                                 f"({self._period:g} s), got {motion.duration:g} s")
+            V = motion.twist_E()
+            if np.linalg.norm(V[:3]) > self._max_w * (1 + 1e-9) \
+                    or np.linalg.norm(V[3:]) > self._max_v * (1 + 1e-9):
+                raise ValueError(
+                    f"{name}: twist ‖ω‖ = {np.linalg.norm(V[:3]):.4g}, ‖v‖ = "
+                    f"{np.linalg.norm(V[3:]):.4g} exceeds max_angular_speed = {self._max_w:g} / "
+                    f"max_linear_speed = {self._max_v:g}; increase its duration")
+            steps += int(round(ratio))
+            self._motion_twists.append(V)
+            self._phase_end_steps.append(steps)
+
+        self._features_port = self.DeclareVectorInputPort("features", 2 * n)
+        self._visible_port = self.DeclareVectorInputPort("visible", n)
+        self._X_CT_port = self.DeclareVectorInputPort("X_CT_measured", 12)
+        self._X_CE_port = self.DeclareVectorInputPort("X_CE_estimate", 12)
+
+        self._command_index = self.DeclareDiscreteState(6)
+        self._phase_index = self.DeclareDiscreteState(1)
+        self._error_index = self.DeclareDiscreteState(1)
+        self._status_index = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateCommand)
+        self.DeclareInitializationDiscreteUpdateEvent(self._UpdateCommand)
+
+        self._command_port = self.DeclareStateOutputPort("V_WE_E_command", self._command_index)
+        self._phase_port = self.DeclareStateOutputPort("phase", self._phase_index)
+        self._error_port = self.DeclareStateOutputPort("feature_error", self._error_index)
+        self._status_port = self.DeclareStateOutputPort("status", self._status_index)
+
+    @staticmethod
+    def _check_speed_limit(value, name):
+        if value == math.inf:
+            return math.inf
+        return check_positive(value, name)
+
+    @property
+    def num_phases(self) -> int:
+        """M + 1: the self-calibration motions and the servo phase."""
+        return len(self._motions) + 1
+
+    @property
+    def servo_start_time(self) -> float:
+        """Time (s) at which the servo phase starts (end of the self-calibration motions)."""
+        return (self._phase_end_steps[-1] if self._phase_end_steps else 0) * self._period
+
+    @property
+    def period(self) -> float:
+        return self._period
+
+    def phase_at(self, t: float) -> int:
+        """Phase index of the sample taken at time t (s)."""
+        step = math.floor(t / self._period + 1e-6)  # robust to t = k·period ± rounding
+        for k, end in enumerate(self._phase_end_steps):
+            if step < end:
+                return k
+        return len(self._motions)
+
+    def _UpdateCommand(self, context, discrete_state):
+        n = self._p_TQ.shape[0]
+        features = self._EvalFinite(self._features_port, context)
+        visible = self._EvalFinite(self._visible_port, context) > 0.5
+        X_CT = vector_to_pose(self._EvalFinite(self._X_CT_port, context))
+        Z = (self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3])[:, 2]
+        usable = visible & (Z > MIN_DEPTH)
+        n_usable = int(usable.sum())
+
+        error = (features - self._desired).reshape(n, 2)[usable]
+        if n_usable > 0:
+            feature_error = float(np.sqrt(np.mean(np.sum(error ** 2, axis=1))))
+        else:  # nothing to measure: keep the last value, status says why
+            feature_error = float(context.get_discrete_state(self._error_index).get_value()[0])
+        status = STATUS_OK if n_usable >= self._min_visible else STATUS_TOO_FEW_VISIBLE
+
+        phase = self.phase_at(context.get_time())
+        command = np.zeros(6)
+        if phase < len(self._motions):
+            command = self._motion_twists[phase]
+        elif status == STATUS_OK:
+            X_CE = vector_to_pose(self._EvalFinite(self._X_CE_port, context))
+            if rotation_defect(X_CE[:3, :3]) > ESTIMATE_ROTATION_TOLERANCE:
+                status = STATUS_INVALID_ESTIMATE
+            else:
+                command = saturate_twist(
+                    ibvs_twist(features.reshape(n, 2), self._desired.reshape(n, 2), Z,
+                               self._intrinsics, X_CE, self._gain, visible=usable),
+                    self._max_w, self._max_v)
+
+        discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
+        discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
+        discrete_state.get_mutable_vector(self._error_index).SetFromVector([feature_error])
+        discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
+
+    def _EvalFinite(self, port, context):
+        value = np.array(port.Eval(context), dtype=float)
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"{port.get_name()} input of {self.get_name()!r}: contains NaN or "
+                             f"infinite values at t = {context.get_time()}")
+        return value
