@@ -35,10 +35,6 @@ from .systems.camera import HandEyeCamera
 from .systems.servo import SelfCalibrationMotion, VisualServoController
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
 
-#: Calibrator ``estimator`` names of the scenario and the filter noise model behind each.
-ESTIMATORS = {"paper": "paper", "paper_full": "full"}
-
-
 def intrinsics_of(scenario: Scenario) -> CameraIntrinsics:
     c = scenario.camera
     return CameraIntrinsics(alpha_u=c.alpha_u, alpha_v=c.alpha_v, theta=np.radians(c.theta_deg),
@@ -158,16 +154,17 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     builder.Connect(ee_sensor.GetOutputPort("X_BE"), sampler.get_input_port())
 
     k = scenario.calibrator
-    if k.estimator not in ESTIMATORS:
-        raise ValueError(f"calibrator.estimator: expected one of {tuple(ESTIMATORS)}, got "
-                         f"{k.estimator!r}")
+    self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
         num_self_calibration_motions=len(scenario.servo.self_calibration),
-        init_method=k.init_method, P0=np.asarray(k.P0_diagonal, dtype=float),
-        process_cov=k.process_noise, rotation_sigma=k.rotation_sigma,
-        translation_sigma=k.translation_sigma, noise_model=ESTIMATORS[k.estimator],
-        orthonormalization=k.orthonormalization, min_rotation_deg=k.min_rotation_deg))
+        init_method=k.init_method, estimator=k.estimator,
+        P0=np.asarray(k.default_P0(), dtype=float), process_cov=k.process_noise,
+        rotation_sigma=k.rotation_sigma, translation_sigma=k.translation_sigma,
+        noise_model=k.noise_model, orthonormalization=k.orthonormalization,
+        min_rotation_deg=k.min_rotation_deg,
+        gate_probability=k.gate_probability or None,
+        max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4))
     builder.Connect(sampler.get_output_port(), calibrator.get_X_BE_input_port())
     builder.Connect(camera.GetOutputPort("X_CT_measured"), calibrator.get_X_CT_input_port())
     builder.Connect(servo.GetOutputPort("phase"), calibrator.get_phase_input_port())
@@ -190,6 +187,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     for name, port in {
         "X_EC_estimate": calibrator.get_X_EC_output_port(),
         "X_EC_two_motion": calibrator.get_two_motion_output_port(),
+        "X_EC_std": calibrator.get_X_EC_std_output_port(),
         "calibrator_status": calibrator.get_status_output_port(),
         "covariance": calibrator.get_covariance_output_port(),
         "feature_error": servo.GetOutputPort("feature_error"),
@@ -251,7 +249,8 @@ class ScenarioResult:
     features: np.ndarray              # (K, 2N)
     desired_features: np.ndarray      # (2N,)
     phase: np.ndarray
-    calibrator_status: np.ndarray     # (K, 2)
+    calibrator_status: np.ndarray     # (K, 4): [mode, accepted, rejected, last NIS]
+    X_EC_std: np.ndarray              # (K, 6): rotation (deg) and translation std of X_EC
     servo_status: np.ndarray
     ik_status: np.ndarray
     X_WC: np.ndarray                  # (K, 4, 4) true camera poses
@@ -276,7 +275,11 @@ class ScenarioResult:
             "final_rotation_error_deg": float(self.rotation_error_deg[-1]),
             "final_translation_error_rel": float(self.translation_error_rel[-1]),
             "final_feature_error_px": float(self.feature_error_px[-1]),
+            "estimator": self.scenario.calibrator.estimator,
             "filter_updates": self.filter_updates,
+            "rejected_measurements": int(self.calibrator_status[-1, 2]),
+            "final_X_EC_rotation_std_deg": [float(v) for v in self.X_EC_std[-1, :3]],
+            "final_X_EC_translation_std": [float(v) for v in self.X_EC_std[-1, 3:]],
             "simulated_time_s": self.sim_time,
             "wall_time_s": self.wall_time,
             "real_time_factor": self.real_time_factor,
@@ -322,7 +325,8 @@ def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         initial_translation_error_rel=translation_error_rel(X_EC_true, X_EC_initial),
         feature_error_px=data["feature_error"][:, 0], features=data["features"],
         desired_features=desired_features(scenario), phase=phase,
-        calibrator_status=data["calibrator_status"], servo_status=data["servo_status"][:, 0],
+        calibrator_status=data["calibrator_status"], X_EC_std=data["X_EC_std"],
+        servo_status=data["servo_status"][:, 0],
         ik_status=data["ik_status"][:, 0],
         X_WC=np.array([vector_to_pose(v) for v in data["X_WC"]]),
         X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
@@ -345,7 +349,7 @@ def build_calibrator_bench(X_EC_true, period: float = 0.1, rotation_sigma: float
                            camera_rotation_sigma: float = 0.01,
                            camera_translation_sigma: float = 0.1,
                            self_calibration_angle: float = np.radians(30.0),
-                           estimator: str = "paper_full", init_method: str = "daniilidis",
+                           estimator: str = "paper", init_method: str = "daniilidis",
                            P0=None) -> CalibratorBench:
     """A diagram of the calibrator fed by PAPER §8's random small motions (no arm, no servo):
     two self-calibration rotations of ``self_calibration_angle`` about E's x then y axes, then
@@ -368,13 +372,10 @@ def build_calibrator_bench(X_EC_true, period: float = 0.1, rotation_sigma: float
         noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
             RandomDistribution.kGaussian, port.size(), period))
         builder.Connect(noise.get_output_port(), port)
-    if estimator not in ESTIMATORS:
-        raise ValueError(f"estimator: expected one of {tuple(ESTIMATORS)}, got {estimator!r}")
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=np.eye(4), init_method=init_method,
-        P0=P0, rotation_sigma=camera_rotation_sigma,
-        translation_sigma=camera_translation_sigma,
-        noise_model=ESTIMATORS[estimator]))
+        estimator=estimator, P0=P0, rotation_sigma=camera_rotation_sigma,
+        translation_sigma=camera_translation_sigma, noise_model=pose_noise_model))
     builder.Connect(source.GetOutputPort("X_BE"), calibrator.get_X_BE_input_port())
     builder.Connect(source.GetOutputPort("X_CT_measured"), calibrator.get_X_CT_input_port())
     builder.Connect(source.GetOutputPort("phase"), calibrator.get_phase_input_port())

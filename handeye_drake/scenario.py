@@ -107,20 +107,33 @@ class ServoConfig:
 
 @dataclass
 class CalibratorConfig:
-    """On-line calibrator tuning. ``estimator``: "paper" (PAPER §5's diagonal G2) or
-    "paper_full" (estimate-dependent G2). Sigmas describe the noise of the camera *motion* A
-    (rotation coefficients, and translation in m); ``P0_diagonal`` has 12 entries (9 rotation
-    coefficients, 3 translations in m²)."""
-    estimator: str = "paper_full"
+    """On-line calibrator. ``estimator``: "paper" (PAPER §4–§5, diagonal G2), "paper_full"
+    (estimate-dependent G2), "manifold" (error-state EKF on SE(3) on motion pairs) or "target"
+    (error-state EKF on the raw poses, AX = ZB, the default). The sigmas describe what the
+    estimator measures: the camera motion A for the paper/manifold estimators (paper:
+    coefficient std; so3: rad), the target pose X_CT for "target". ``P0_diagonal``: 12 entries
+    (9 rotation coefficients, 3 translations in m²) for the paper estimators, 6 ([δθ rad²;
+    δt m²]) for ours; empty = the estimator's default."""
+    estimator: str = "target"
     init_method: str = "daniilidis"
-    rotation_sigma: float = 0.004
-    translation_sigma: float = 0.002
-    P0_diagonal: List[float] = field(default_factory=lambda: [1e-3] * 9 + [1e-3] * 3)
+    noise_model: str = "so3"
+    rotation_sigma: float = 0.002
+    translation_sigma: float = 0.0005
+    P0_diagonal: List[float] = field(default_factory=list)
     process_noise: float = 0.0
     orthonormalization: str = "svd"
-    #: Pairs are formed once the robot has turned this much since the last used sample (0: every
-    #: sample, as the paper). Small pairs carry mostly noise, which biases the linear model.
+    #: Motion estimators form a pair once the robot has turned this much since the last used
+    #: sample (0: every sample, as the paper).
     min_rotation_deg: float = 0.0
+    #: NIS gate probability of our estimators (0 disables the gate).
+    gate_probability: float = 0.999
+
+    def default_P0(self) -> list:
+        if self.P0_diagonal:
+            return list(self.P0_diagonal)
+        if self.estimator in ("paper", "paper_full"):
+            return [1e-4] * 9 + [1e-4] * 3
+        return [(np.radians(1.0))**2] * 3 + [0.01**2] * 3
 
 
 @dataclass
@@ -152,10 +165,18 @@ class Scenario:
             check_positive(getattr(self.camera, name), f"camera.{name}", allow_zero=True)
         for name in ("rotation_sigma", "translation_sigma", "process_noise", "min_rotation_deg"):
             check_positive(getattr(self.calibrator, name), f"calibrator.{name}", allow_zero=True)
-        if len(self.calibrator.P0_diagonal) != 12 or not all(
-                np.isfinite(v) and v > 0 for v in self.calibrator.P0_diagonal):
-            raise ValueError("calibrator.P0_diagonal: needs 12 positive finite variances, got "
-                             f"{self.calibrator.P0_diagonal}")
+        from .systems.calibrator import ESTIMATORS
+        if self.calibrator.estimator not in ESTIMATORS:
+            raise ValueError(f"calibrator.estimator: expected one of {ESTIMATORS}, got "
+                             f"{self.calibrator.estimator!r}")
+        n = 12 if self.calibrator.estimator in ("paper", "paper_full") else 6
+        P0 = self.calibrator.default_P0()
+        if len(P0) != n or not all(np.isfinite(v) and v > 0 for v in P0):
+            raise ValueError(f"calibrator.P0_diagonal: needs {n} positive finite variances for "
+                             f"estimator {self.calibrator.estimator!r}, got {P0}")
+        if not 0.0 <= self.calibrator.gate_probability < 1.0:
+            raise ValueError("calibrator.gate_probability: must be in [0, 1), got "
+                             f"{self.calibrator.gate_probability}")
         if len(self.servo.self_calibration) < 2:
             raise ValueError("servo.self_calibration: needs at least 2 motions (with non-parallel "
                              f"axes), got {len(self.servo.self_calibration)}")
