@@ -10,12 +10,11 @@ at a 5-point target; two 20° self-calibration rotations about the camera's x an
 point 0.45 m in front of it, then image-based visual servoing to a pose 0.35 m above the target.
 """
 
-from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import List
+
 
 import numpy as np
 from pydrake.common.schema import Rotation, Transform
@@ -47,7 +46,7 @@ class ArmConfig:
     urdf: str = ""
     base_frame: str = "base_link"
     ee_frame: str = "tool0"
-    q0_deg: List[float] = field(default_factory=lambda: [0.0, -90.0, 90.0, -90.0, -90.0, 0.0])
+    q0_deg: list[float] = field(default_factory=lambda: [0.0, -90.0, 90.0, -90.0, -90.0, 0.0])
     time_step: float = 0.002
     X_WB: Transform = field(default_factory=lambda: _transform([0, 0, 0], [0, 0, 0]))
 
@@ -75,7 +74,7 @@ class CameraConfig:
 class TargetConfig:
     """Target frame T in world and its points p_TQ (m)."""
     X_WT: Transform = field(default_factory=lambda: _transform([-0.47, -0.10, 0.0], [0, 0, 20]))
-    points: List[List[float]] = field(default_factory=lambda: [
+    points: list[list[float]] = field(default_factory=lambda: [
         [-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [0.05, 0.05, 0.0], [-0.05, 0.05, 0.0],
         [0.0, 0.0, 0.03]])
 
@@ -85,7 +84,7 @@ class SelfCalibrationMotionConfig:
     """A rotation by ``angle_deg`` about ``axis_C`` (a direction in the camera frame, mapped to E
     through the initial hand-eye guess) through a point ``pivot_distance`` in front of the camera,
     executed at constant speed in ``duration`` s."""
-    axis_C: List[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
+    axis_C: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
     angle_deg: float = 20.0
     pivot_distance: float = 0.45
     duration: float = 2.0
@@ -100,7 +99,7 @@ class ServoConfig:
     max_linear_speed: float = 0.15
     X_TC_desired: Transform = field(default_factory=lambda: _transform([0, 0, 0.35],
                                                                        [180, 0, 0]))
-    self_calibration: List[SelfCalibrationMotionConfig] = field(default_factory=lambda: [
+    self_calibration: list[SelfCalibrationMotionConfig] = field(default_factory=lambda: [
         SelfCalibrationMotionConfig(axis_C=[1.0, 0.0, 0.0]),
         SelfCalibrationMotionConfig(axis_C=[0.0, 1.0, 0.0])])
 
@@ -119,7 +118,7 @@ class CalibratorConfig:
     noise_model: str = "so3"
     rotation_sigma: float = 0.002
     translation_sigma: float = 0.0005
-    P0_diagonal: List[float] = field(default_factory=list)
+    P0_diagonal: list[float] = field(default_factory=list)
     process_noise: float = 0.0
     orthonormalization: str = "svd"
     #: Motion estimators form a pair once the robot has turned this much since the last used
