@@ -11,6 +11,7 @@ The Drake systems live in ``handeye_drake.systems`` and the closed loop in
 from .estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
 from .estimation.kalman import HandEyeKalmanFilter, kalman_step, measurement_covariance
 from .estimation.linear_model import linear_system, relative_motions
+from .estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
 from .estimation.orthonormalize import orthonormalize
 from .estimation.solvers import METHODS as SOLVER_METHODS
 from .estimation.solvers import calibrate_hand_eye, solve_ax_xb
@@ -19,6 +20,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "HandEyeKalmanFilter",
+    "HandEyeTargetFilter",
+    "ManifoldHandEyeFilter",
     "SOLVER_METHODS",
     "calibrate_hand_eye",
     "kalman_step",

@@ -257,3 +257,11 @@ def test_quaternion_error_is_sign_safe():
 def test_relative_translation_error_undefined_for_zero_translation():
     with pytest.raises(ValueError, match="translation is zero"):
         translation_error_rel(np.eye(4), np.eye(4))
+
+
+def test_core_import_does_not_load_drake():
+    import subprocess
+    import sys
+    code = ("import sys, handeye_drake; handeye_drake.HandEyeKalmanFilter; "
+            "assert not any(m.startswith('pydrake') for m in sys.modules), 'pydrake loaded'")
+    subprocess.run([sys.executable, "-c", code], check=True)
