@@ -14,12 +14,15 @@ import numpy as np
 #: sheared matrix.
 ROTATION_TOLERANCE = 1e-5
 
+#: Largest accepted positive scalar (sigmas, periods, gains): its square must stay finite.
+MAX_MAGNITUDE = 1e150
+
 
 def as_matrix(value, name: str, shape: tuple[int, ...]) -> np.ndarray:
     """Returns ``value`` as a finite float array of ``shape`` or raises ValueError."""
     try:
         M = np.array(value, dtype=float)
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:
         raise ValueError(f"{name}: expected a numeric array of shape {shape}, got "
                          f"{type(value).__name__} ({e})") from None
     if M.shape != tuple(shape):
@@ -66,11 +69,12 @@ def as_transform(X, name: str, rigid: bool = True, tol: float = ROTATION_TOLERAN
 
 def as_transform_list(Xs, name: str, rigid: bool = True, min_length: int = 0) -> list[np.ndarray]:
     """Validates a sequence of poses (see ``as_transform``); element errors name the index."""
-    if isinstance(Xs, np.ndarray):
-        if Xs.ndim == 2:
-            raise ValueError(f"{name}: expected a sequence of 4×4 transforms, got a single "
-                             f"array of shape {Xs.shape}")
-        Xs = list(Xs)
+    if isinstance(Xs, np.ndarray) and Xs.ndim != 3:
+        raise ValueError(f"{name}: expected a sequence of 4×4 transforms, got an array of shape "
+                         f"{Xs.shape}")
+    if isinstance(Xs, (str, bytes)) or hasattr(Xs, "GetAsMatrix4"):
+        raise ValueError(f"{name}: expected a sequence of 4×4 transforms, got "
+                         f"{type(Xs).__name__}")
     try:
         items = list(Xs)
     except TypeError:
@@ -95,6 +99,9 @@ def check_positive(value, name: str, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         bound = "≥ 0" if allow_zero else "> 0"
         raise ValueError(f"{name}: must be finite and {bound}, got {value!r}")
+    if v > MAX_MAGNITUDE:
+        # Squares (variances) of larger values overflow to inf.
+        raise ValueError(f"{name}: {value!r} is too large (must be ≤ {MAX_MAGNITUDE:g})")
     return v
 
 
@@ -116,3 +123,4 @@ def check_covariance(P, name: str, n: int) -> np.ndarray:
         raise ValueError(f"{name}: covariance must be positive semi-definite, smallest "
                          f"eigenvalue {min_eig:.3g}")
     return 0.5 * (P + P.T)
+
