@@ -35,8 +35,14 @@ def relative_motions(X_BE_list, X_CT_list, rigid_camera: bool = True):
         for i, X in enumerate(X_CT):
             if abs(np.linalg.det(X[:3, :3])) < 1e-9:
                 raise ValueError(f"X_CT_list[{i}]: rotation block is singular, cannot be inverted")
-    A_list = [X_CT[k - 1] @ inv_cam(X_CT[k]) for k in range(1, len(X_CT))]
-    B_list = [inverse(X_BE[k - 1]) @ X_BE[k] for k in range(1, len(X_BE))]
+    with np.errstate(over="ignore", invalid="ignore"):
+        A_list = [X_CT[k - 1] @ inv_cam(X_CT[k]) for k in range(1, len(X_CT))]
+        B_list = [inverse(X_BE[k - 1]) @ X_BE[k] for k in range(1, len(X_BE))]
+    for name, motions in (("X_CT_list", A_list), ("X_BE_list", B_list)):
+        for k, M in enumerate(motions):
+            if not np.all(np.isfinite(M)):
+                raise ValueError(f"{name}[{k}], {name}[{k + 1}]: the motion between them "
+                                 "overflows (translations too large?)")
     return A_list, B_list
 
 
