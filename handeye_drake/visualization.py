@@ -4,9 +4,9 @@ camera frames (X_WC and X_WE · X_EC_estimate), recorded into a self-contained H
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Sphere
+from pydrake.geometry import (Cylinder, Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba,
+                              Sphere)
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.geometry import Cylinder
 from pydrake.systems.framework import LeafSystem
 
 from .estimation.se3 import vector_to_pose
@@ -55,6 +55,9 @@ def add_meshcat_visualization(builder, scene_graph, meshcat: Meshcat, X_WT, p_TQ
                               X_WC_port, X_WE_port, X_EC_estimate_port) -> None:
     """Arm (illustration geometry), target points and both camera frames in ``meshcat``."""
     MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams())
+    # Look at the workspace between the arm's base and the target.
+    p_WT = np.asarray(X_WT, dtype=float)[:3, 3]
+    meshcat.SetCameraPose(p_WT + np.array([0.9, -0.9, 0.7]), 0.5 * p_WT + np.array([0, 0, 0.2]))
     for i, p in enumerate(np.asarray(p_TQ, dtype=float)):
         meshcat.SetObject(f"target/point{i}", Sphere(0.008), Rgba(0.9, 0.5, 0.0, 1.0))
         meshcat.SetTransform(f"target/point{i}", RigidTransform(p))
