@@ -9,6 +9,6 @@ from handeye_drake.diagram_render import render_diagram
 from handeye_drake.scenario import load_scenario
 
 if __name__ == "__main__":
-    loop = build_diagram(load_scenario())
+    loop = build_diagram(load_scenario(), with_loggers=False)
     written = render_diagram(loop.diagram, Path(__file__).with_name("closed_loop"))
     print("wrote: " + ", ".join(map(str, written)))

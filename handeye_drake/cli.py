@@ -34,7 +34,8 @@ def _simulate(args) -> int:
         meshcat = Meshcat()
     result = run_scenario(scenario, feedback=not args.no_feedback, meshcat=meshcat)
     written = write_run_plots(result, out)
-    written += render_diagram(build_diagram(scenario).diagram, out / "diagram")
+    written += render_diagram(build_diagram(scenario, with_loggers=False).diagram,
+                              out / "diagram")
     if meshcat is not None:
         html = Path(args.meshcat_html) if args.meshcat_html else out / "replay.html"
         html.parent.mkdir(parents=True, exist_ok=True)

@@ -84,7 +84,7 @@ class ClosedLoop:
 
 
 def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
-                  meshcat=None) -> ClosedLoop:
+                  meshcat=None, with_loggers: bool = True) -> ClosedLoop:
     """Builds the closed loop.
 
     Args:
@@ -93,6 +93,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             matrix; False feeds the servo the constant ``X_CE_fixed`` (default: the scenario's
             guess) — the calibrator still runs, but open loop.
         meshcat: an optional ``pydrake.geometry.Meshcat`` to visualize the arm in.
+        with_loggers: add the VectorLogSinks ``run_scenario`` reads (off for a clean picture).
 
     Exported ports: outputs ``X_EC_estimate``, ``features``, ``feature_error``,
     ``V_WE_E_command``, ``X_WC``.
@@ -184,7 +185,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
 
     loggers = {}
     log_period = period
-    for name, port in {
+    for name, port in {} if not with_loggers else {
         "X_EC_estimate": calibrator.get_X_EC_output_port(),
         "X_EC_two_motion": calibrator.get_two_motion_output_port(),
         "X_EC_std": calibrator.get_X_EC_std_output_port(),
