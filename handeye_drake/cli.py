@@ -3,6 +3,7 @@
     handeye-drake simulate [--scenario FILE] [--out DIR] [--meshcat-html FILE] [--seed N]
                            [--no-feedback] [--no-meshcat]
     handeye-drake scenario            # prints the default scenario as YAML (a template to edit)
+    handeye-drake reproduce [fig2 … fig10 | all] [--runs N] [--seed S] [--workers W] [--out DIR]
 """
 
 from __future__ import annotations
@@ -85,6 +86,9 @@ def make_parser() -> argparse.ArgumentParser:
 
     sc = sub.add_parser("scenario", help="print the default scenario as YAML")
     sc.set_defaults(func=_print_scenario)
+
+    from .reproduce import add_reproduce_parser
+    add_reproduce_parser(sub)
     return parser
 
 
