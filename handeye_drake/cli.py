@@ -4,6 +4,8 @@
                            [--no-feedback] [--no-meshcat]
     handeye-drake scenario            # prints the default scenario as YAML (a template to edit)
     handeye-drake reproduce [fig2 … fig10 | all] [--runs N] [--seed S] [--workers W] [--out DIR]
+    handeye-drake calibrate --robot FILE --camera FILE [--format tum|csv-matrix|opencv-yaml] …
+    handeye-drake benchmark accuracy [--json FILE]
 """
 
 from __future__ import annotations
@@ -89,6 +91,10 @@ def make_parser() -> argparse.ArgumentParser:
 
     from .reproduce import add_reproduce_parser
     add_reproduce_parser(sub)
+    from .recorded.calibrate import add_calibrate_parser
+    add_calibrate_parser(sub)
+    from .benchmark import add_benchmark_parser
+    add_benchmark_parser(sub)
     return parser
 
 

@@ -112,6 +112,32 @@ def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.
     return est, 0.5 * (P_new + P_new.T), True, nis
 
 
+def covariance_inflation(z, H, P, Rn, target_nis: float, max_scale: float = 1e12):
+    """Smallest s ≥ 1 with zᵀ (s H P Hᵀ + Rn)⁻¹ z ≤ target_nis, or None if no s ≤ max_scale
+    achieves it (the innovation is not explained by any error of the state: a true outlier).
+
+    Used to recover from a gate lock-out: an innovation that only a larger state error explains
+    means the covariance is too small (inconsistent), not that the measurement is wrong.
+    """
+    HPH = H @ P @ H.T
+
+    def nis(scale):
+        return float(z @ _robust_inverse(scale * HPH + Rn) @ z)
+
+    if nis(1.0) <= target_nis:
+        return 1.0
+    if not nis(max_scale) <= target_nis:
+        return None
+    lo, hi = 0.0, float(np.log(max_scale))  # bisection on log s: NIS decreases with s
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if nis(np.exp(mid)) <= target_nis:
+            hi = mid
+        else:
+            lo = mid
+    return float(np.exp(hi))
+
+
 def motion_residual(X_CE, measurement):
     """(z, H) of one motion pair for ``error_state_update``; measurement = (R_A (projected on
     SO(3)), t_A, R_B, t_B); error state [δθ; δt] of X_CE."""
@@ -171,7 +197,7 @@ class _ErrorStateFilter:
     _dim = 6
 
     def __init__(self, P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                 gate_probability, iterations):
+                 gate_probability, iterations, max_consecutive_rejections=5):
         if noise_model not in NOISE_MODELS:
             raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
         self._noise_model = noise_model
@@ -194,27 +220,56 @@ class _ErrorStateFilter:
         if it != iterations or it < 1:
             raise ValueError(f"iterations: needs an integer ≥ 1, got {iterations!r}")
         self._iterations = it
+        if max_consecutive_rejections is None:
+            self._max_consecutive = None
+        else:
+            k = int(max_consecutive_rejections)
+            if k != max_consecutive_rejections or k < 1:
+                raise ValueError("max_consecutive_rejections: needs an integer ≥ 1 or None, got "
+                                 f"{max_consecutive_rejections!r}")
+            self._max_consecutive = k
         self._num_updates = 0
         self._num_rejected = 0
+        self._consecutive_rejections = 0
+        self._num_inflations = 0
         self._last_nis = float("nan")
         self._last_rejected = False
 
     # Subclasses provide: _residual(estimate, meas) -> (z (6), H (6×n)), _retract(estimate, δ).
     def _update(self, meas) -> bool:
+        P_prior = self._P + self._G1
         est, P, accepted, nis = error_state_update(
-            self._estimate, self._P + self._G1, meas, self._residual, self._retract, self._Rn,
+            self._estimate, P_prior, meas, self._residual, self._retract, self._Rn,
             self._gate, self._iterations)
+        inflated = False
+        if (not accepted and self._max_consecutive is not None and np.isfinite(nis)
+                and self._consecutive_rejections + 1 >= self._max_consecutive):
+            # Gate lock-out: so many rejections in a row are far more likely a covariance that
+            # is too small (bad start, inconsistent P0) than outliers; without this the estimate
+            # would freeze and every later measurement be discarded. Inflate P just enough for
+            # this innovation to look typical (χ² median); a measurement that no state error
+            # explains (s → ∞ does not help) stays rejected.
+            z, H = self._residual(self._estimate, meas)
+            s = covariance_inflation(z, H, P_prior, self._Rn, float(chi2.ppf(0.5, len(z))))
+            if s is not None:
+                est, P, accepted, _ = error_state_update(
+                    self._estimate, s * P_prior, meas, self._residual, self._retract, self._Rn,
+                    np.inf, self._iterations)
+                inflated = True
         self._last_nis = nis
         self._last_rejected = not accepted
         if not accepted:
             self._P = P
             self._num_rejected += 1
+            self._consecutive_rejections += 1
             return False
         if not (all(np.all(np.isfinite(v)) for v in self._finite_parts(est))
                 and np.all(np.isfinite(P))):
             raise ValueError("the update produced a non-finite estimate; state left unchanged")
         self._estimate, self._P = est, P
         self._num_updates += 1
+        self._consecutive_rejections = 0
+        self._num_inflations += int(inflated)
         return True
 
     @property
@@ -239,6 +294,12 @@ class _ErrorStateFilter:
     @property
     def last_rejected(self) -> bool:
         return self._last_rejected
+
+    @property
+    def num_inflations(self) -> int:
+        """Gate lock-outs recovered from by inflating the covariance (see
+        ``max_consecutive_rejections``)."""
+        return self._num_inflations
 
 
 class ManifoldHandEyeFilter(_ErrorStateFilter):
@@ -265,19 +326,24 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
         gate_probability: NIS gate: a pair whose normalized innovation exceeds the χ²(6)
             quantile of this probability is rejected (counted in ``num_rejected``); None disables.
         iterations: maximum Gauss–Newton iterations of the iterated EKF (1 = plain EKF).
+        max_consecutive_rejections: after this many gate rejections in a row the filter takes
+            its covariance, not the measurements, to be wrong (a gate lock-out, e.g. after a bad
+            start): it inflates P until the current innovation is typical and accepts it
+            (counted in ``num_inflations``); a measurement that no state error explains stays
+            rejected. None disables (a lock-out then freezes the estimate for good).
     """
 
     def __init__(self, X_CE_init, P0=None, process_cov=None, rotation_sigma: float = 0.1,
                  translation_sigma: float = 0.1, noise_model: str = "so3",
                  orthonormalization: str = "svd", gate_probability: float | None = 0.999,
-                 iterations: int = 3):
+                 iterations: int = 3, max_consecutive_rejections: int | None = 5):
         self._estimate = as_transform(X_CE_init, "X_CE_init")
         if orthonormalization not in ("svd", "qr", "horn"):
             raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
                              f"{orthonormalization!r}")
         self._orthonormalization = orthonormalization
         super().__init__(P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                         gate_probability, iterations)
+                         gate_probability, iterations, max_consecutive_rejections)
 
     _residual = staticmethod(motion_residual)
     _retract = staticmethod(retract_pose)
@@ -349,6 +415,9 @@ class HandEyeTargetFilter(_ErrorStateFilter):
     The target pose needs no prior: ``X_BT_init`` defaults to the one implied by the first
     sample and the initial hand-eye estimate, with ``target_prior_cov`` (default: 1 rad² and
     1 length² per axis, i.e. nearly unknown).
+
+    The NIS gate and its lock-out recovery (``max_consecutive_rejections``) work as in
+    ``ManifoldHandEyeFilter``.
     """
 
     _dim = 12
@@ -356,7 +425,8 @@ class HandEyeTargetFilter(_ErrorStateFilter):
     def __init__(self, X_CE_init, P0=None, process_cov=None, rotation_sigma: float = 0.01,
                  translation_sigma: float = 0.001, noise_model: str = "so3",
                  orthonormalization: str = "svd", gate_probability: float | None = 0.999,
-                 iterations: int = 3, X_BT_init=None, target_prior_cov=None):
+                 iterations: int = 3, X_BT_init=None, target_prior_cov=None,
+                 max_consecutive_rejections: int | None = 5):
         X_CE = as_transform(X_CE_init, "X_CE_init")
         if orthonormalization not in ("svd", "qr", "horn"):
             raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
@@ -367,7 +437,8 @@ class HandEyeTargetFilter(_ErrorStateFilter):
                                     "target_prior_cov", 6)
         G1 = check_covariance(0.0 if process_cov is None else process_cov, "process_cov", 6)
         super().__init__(scipy.linalg.block_diag(P_hand_eye, P_target), None, rotation_sigma,
-                         translation_sigma, noise_model, gate_probability, iterations)
+                         translation_sigma, noise_model, gate_probability, iterations,
+                         max_consecutive_rejections)
         self._G1 = scipy.linalg.block_diag(G1, np.zeros((6, 6)))
         self._target_known = X_BT_init is not None
         X_BT = np.eye(4) if X_BT_init is None else as_transform(X_BT_init, "X_BT_init")
