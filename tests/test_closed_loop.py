@@ -229,3 +229,36 @@ def test_scenario_file_round_trip(tmp_path):
     np.testing.assert_allclose(s.X_EC_true_matrix(), Scenario().X_EC_true_matrix())
     with pytest.raises(ValueError, match="no such file"):
         load_scenario(tmp_path / "missing.yaml")
+
+
+@pytest.mark.parametrize("recovery", [5, None])
+def test_calibrator_recovers_from_gate_lock_out(recovery):
+    """A wrong start with an over-confident P0: every consistent sample fails the NIS gate. With
+    the recovery the covariance is inflated after 5 rejections in a row and the estimate
+    converges; without it, the estimate stays frozen at the wrong start."""
+    rng = np.random.default_rng(7)
+    X_EC = make_transform(rotation_exp([0.1, -0.2, 1.5]), [0.05, -0.03, 0.07])
+    X_BT = make_transform(rotation_exp([3.0, 0.1, 0.2]), [0.6, 0.1, 0.0])
+    X_BE, X_CT = _poses(rng, X_EC, 40, X_BT)
+    X_CT_keys = list(X_CT[:3])
+    X_CT_keys[2] = make_transform(rotation_exp([0.0, 0.05, 0.0]) @ X_CT[2][:3, :3], X_CT[2][:3, 3])
+    sys = HandEyeCalibrator(period=0.1, X_CE_initial_guess=np.eye(4), estimator="target",
+                            P0=np.eye(6) * 1e-10, rotation_sigma=0.001, translation_sigma=0.0005,
+                            max_consecutive_rejections=recovery)
+    context = sys.CreateDefaultContext()
+    for k, phase in enumerate([0, 1, 2]):
+        _step(sys, context, X_BE[k], X_CT_keys[k], phase)
+    X_CE_start = vector_to_pose(sys.get_X_CE_output_port().Eval(context))
+    from handeye_drake import rotation_error_deg
+    assert rotation_error_deg(inverse(X_EC), X_CE_start) > 1.0
+    for k in range(3, 40):
+        _step(sys, context, X_BE[k], X_CT[k], 2)
+    X_CE_end = vector_to_pose(sys.get_X_CE_output_port().Eval(context))
+    status = sys.get_status_output_port().Eval(context)
+    if recovery:
+        assert rotation_error_deg(inverse(X_EC), X_CE_end) < 0.05
+        assert status[1] > 20  # accepted
+    else:
+        np.testing.assert_allclose(X_CE_end, X_CE_start, atol=1e-8)
+        assert rotation_error_deg(inverse(X_EC), X_CE_end) > 1.0
+        assert status[2] > 30  # rejected

@@ -138,6 +138,33 @@ def covariance_inflation(z, H, P, Rn, target_nis: float, max_scale: float = 1e12
     return float(np.exp(hi))
 
 
+def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, gate,
+                             iterations: int, consecutive_rejections: int,
+                             max_consecutive_rejections: int | None):
+    """``error_state_update`` with the NIS gate's lock-out recovery, as a pure function.
+
+    When this measurement would be the ``max_consecutive_rejections``-th rejection in a row, so
+    many rejections are far more likely a covariance that is too small (bad start, inconsistent
+    P0) than outliers; without recovery the estimate would freeze and every later measurement be
+    discarded. P is then inflated just enough for this innovation to look typical (χ² median);
+    a measurement that no state error explains stays rejected.
+
+    Returns (estimate, P, accepted, nis, inflated).
+    """
+    est, P_new, accepted, nis = error_state_update(estimate, P, measurement, residual, retract,
+                                                   Rn, gate, iterations)
+    if (accepted or max_consecutive_rejections is None or not np.isfinite(nis)
+            or consecutive_rejections + 1 < max_consecutive_rejections):
+        return est, P_new, accepted, nis, False
+    z, H = residual(estimate, measurement)
+    s = covariance_inflation(z, H, P, Rn, float(chi2.ppf(0.5, len(z))))
+    if s is None:
+        return est, P_new, False, nis, False
+    est, P_new, accepted, _ = error_state_update(estimate, s * P, measurement, residual,
+                                                 retract, Rn, np.inf, iterations)
+    return est, P_new, accepted, nis, accepted
+
+
 def motion_residual(X_CE, measurement):
     """(z, H) of one motion pair for ``error_state_update``; measurement = (R_A (projected on
     SO(3)), t_A, R_B, t_B); error state [δθ; δt] of X_CE."""
@@ -237,25 +264,9 @@ class _ErrorStateFilter:
 
     # Subclasses provide: _residual(estimate, meas) -> (z (6), H (6×n)), _retract(estimate, δ).
     def _update(self, meas) -> bool:
-        P_prior = self._P + self._G1
-        est, P, accepted, nis = error_state_update(
-            self._estimate, P_prior, meas, self._residual, self._retract, self._Rn,
-            self._gate, self._iterations)
-        inflated = False
-        if (not accepted and self._max_consecutive is not None and np.isfinite(nis)
-                and self._consecutive_rejections + 1 >= self._max_consecutive):
-            # Gate lock-out: so many rejections in a row are far more likely a covariance that
-            # is too small (bad start, inconsistent P0) than outliers; without this the estimate
-            # would freeze and every later measurement be discarded. Inflate P just enough for
-            # this innovation to look typical (χ² median); a measurement that no state error
-            # explains (s → ∞ does not help) stays rejected.
-            z, H = self._residual(self._estimate, meas)
-            s = covariance_inflation(z, H, P_prior, self._Rn, float(chi2.ppf(0.5, len(z))))
-            if s is not None:
-                est, P, accepted, _ = error_state_update(
-                    self._estimate, s * P_prior, meas, self._residual, self._retract, self._Rn,
-                    np.inf, self._iterations)
-                inflated = True
+        est, P, accepted, nis, inflated = gated_error_state_update(
+            self._estimate, self._P + self._G1, meas, self._residual, self._retract, self._Rn,
+            self._gate, self._iterations, self._consecutive_rejections, self._max_consecutive)
         self._last_nis = nis
         self._last_rejected = not accepted
         if not accepted:

@@ -34,7 +34,7 @@ from scipy.stats import chi2
 
 from ..estimation.kalman import kalman_step, measurement_covariance, transform_from_state
 from ..estimation.linear_model import linear_system_matrices, state_from_transform
-from ..estimation.manifold import (error_state_update, inverse_tangent_jacobian,
+from ..estimation.manifold import (gated_error_state_update, inverse_tangent_jacobian,
                                    measurement_noise_covariance, motion_residual, pose_residual,
                                    retract_pose, retract_pose_pair)
 from ..estimation.orthonormalize import METHODS as ORTHONORMALIZATION_METHODS
@@ -107,7 +107,7 @@ class HandEyeCalibrator(LeafSystem):
                  translation_sigma: float = 0.0005, noise_model: str = "so3",
                  orthonormalization: str = "svd", min_rotation_deg: float = 0.0,
                  gate_probability: float | None = 0.999, max_self_calibration_samples: int = 0,
-                 offset: float | None = None):
+                 max_consecutive_rejections: int | None = 5, offset: float | None = None):
         """
         Args:
             period: sample period (s), the camera's.
@@ -125,6 +125,9 @@ class HandEyeCalibrator(LeafSystem):
             min_rotation_deg: motion estimators form a pair only once the robot turned this much
                 since the last used sample (0: every sample, as the paper).
             gate_probability: NIS gate of our estimators (None disables).
+            max_consecutive_rejections: after this many gate rejections in a row the covariance
+                is inflated so the estimate cannot freeze (see ``gated_error_state_update``);
+                None disables the recovery.
             max_self_calibration_samples: buffer size for the replay of self-calibration samples
                 (our estimators); 0 disables the replay.
             offset: update offset after the camera trigger (default: half a period).
@@ -172,6 +175,12 @@ class HandEyeCalibrator(LeafSystem):
                 raise ValueError(f"gate_probability: must be in (0, 1) or None, got "
                                  f"{gate_probability!r}")
             self._gate = float(chi2.ppf(float(gate_probability), 6))
+        if max_consecutive_rejections is not None and (
+                int(max_consecutive_rejections) != max_consecutive_rejections
+                or max_consecutive_rejections < 1):
+            raise ValueError("max_consecutive_rejections: needs an integer ≥ 1 or None, got "
+                             f"{max_consecutive_rejections!r}")
+        self._max_consecutive_rejections = max_consecutive_rejections
         cap = int(max_self_calibration_samples)
         if cap != max_self_calibration_samples or cap < 0:
             raise ValueError("max_self_calibration_samples: needs an integer ≥ 0, got "
@@ -191,8 +200,9 @@ class HandEyeCalibrator(LeafSystem):
         self._P_index = self.DeclareDiscreteState(P_init.reshape(144))
         self._prev_index = self.DeclareDiscreteState(24)
         self._keys_index = self.DeclareDiscreteState((M + 1) * 24)
-        # [mode, key frames, has previous sample, accepted, rejected, last NIS, buffered samples]
-        self._info_index = self.DeclareDiscreteState(7)
+        # [mode, key frames, has previous sample, accepted, rejected, last NIS, buffered samples,
+        #  consecutive rejections]
+        self._info_index = self.DeclareDiscreteState(8)
         self._two_motion_index = self.DeclareDiscreteState(self._x_guess)
         self._buffer_index = self.DeclareDiscreteState(max(1, self._buffer_capacity * 24))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._offset, self._DoUpdate)
@@ -273,8 +283,9 @@ class HandEyeCalibrator(LeafSystem):
             meas = (inverse(X_BE), orthonormalize_unchecked(X_CT[:3, :3], "svd"), X_CT[:3, 3])
             P = P12.copy()
             P[:6, :6] += self._G1
-            (X_CE, X_BT), P, accepted, nis = error_state_update(
-                (X_CE, X_BT), P, meas, pose_residual, retract_pose_pair, self._Rn, self._gate)
+            (X_CE, X_BT), P, accepted, nis, _ = gated_error_state_update(
+                (X_CE, X_BT), P, meas, pose_residual, retract_pose_pair, self._Rn, self._gate,
+                3, int(info[7]), self._max_consecutive_rejections)
             est = np.concatenate([pose_to_vector(X_CE), pose_to_vector(X_BT)])
             P12 = P
         else:
@@ -295,9 +306,9 @@ class HandEyeCalibrator(LeafSystem):
             else:
                 X_CE = vector_to_pose(est[:12])
                 meas = (orthonormalize_unchecked(A[:3, :3], "svd"), A[:3, 3], B[:3, :3], B[:3, 3])
-                X_CE, P, accepted, nis = error_state_update(
+                X_CE, P, accepted, nis, _ = gated_error_state_update(
                     X_CE, P12[:6, :6] + self._G1, meas, motion_residual, retract_pose, self._Rn,
-                    self._gate)
+                    self._gate, 3, int(info[7]), self._max_consecutive_rejections)
                 est = np.concatenate([pose_to_vector(X_CE), est[12:]])
                 P12 = P12.copy()
                 P12[:6, :6] = P
@@ -305,6 +316,7 @@ class HandEyeCalibrator(LeafSystem):
             return None
         info = info.copy()
         info[3 if accepted else 4] += 1
+        info[7] = 0.0 if accepted else info[7] + 1
         info[5] = nis if np.isfinite(nis) else -1.0
         return est, P12, info
 
