@@ -69,7 +69,7 @@ import numpy as np
 from .estimation.errors import rotation_error_deg, translation_error_rel
 from .estimation.kalman import HandEyeKalmanFilter
 from .estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
-from .estimation.ml import refine_ml, refine_ml_poses, robust_initial_estimate
+from .estimation.ml import refine_ml, refine_ml_poses
 from .estimation.orthonormalize import orthonormalize_unchecked
 from .estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
 from .estimation.solvers import solve_ax_xb
@@ -283,13 +283,11 @@ def _paper_task(task) -> dict:
                 noise_model="paper"), zip(A_used[2:], B_used[2:])))
             est["manifold"] = None if mf is None else mf.X_CE
         n = START_UP_MOTIONS
-        start = _safe(lambda: robust_initial_estimate(A_used[:n], B_used[:n], sigma, st,
-                                                      "paper"))
-        ours = None if start is None else _safe(lambda: _run_filter(ManifoldHandEyeFilter(
-            start.X_CE, P0=start.covariance, rotation_sigma=sigma, translation_sigma=st,
-            noise_model="paper"), zip(A_used[n:], B_used[n:])))
+        ours = _safe(lambda: _run_filter(ManifoldHandEyeFilter.from_motions(
+            A_used[:n], B_used[:n], sigma, st, "paper"), zip(A_used[n:], B_used[n:])))
         est[OURS_MOTIONS] = None if ours is None else ours.X_CE
         if ours is not None:
+            start = ours.start_up
             bad = ~clean_mask
             info["start_up_dropped_corrupted"] = int(np.sum(bad[:n] & ~start.inliers))
             info["start_up_dropped_clean"] = int(np.sum(~bad[:n] & ~start.inliers))

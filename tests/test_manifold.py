@@ -331,3 +331,32 @@ def test_max_consecutive_rejections_is_validated(value):
         ManifoldHandEyeFilter(np.eye(4), max_consecutive_rejections=value)
     with pytest.raises(ValueError, match="max_consecutive_rejections"):
         HandEyeTargetFilter(np.eye(4), max_consecutive_rejections=value)
+
+
+def test_from_motions_start_matches_batch_ml():
+    """Seeded from 10 motions by the robust ML start-up, the on-line filter ends at the batch ML
+    estimate of all motions (the benchmark's ``manifold_ml_start``), and skips a wrong motion."""
+    from handeye_drake import rotation_error_deg
+    from handeye_drake.estimation.manifold import ManifoldHandEyeFilter
+    from handeye_drake.estimation.ml import refine_ml
+    from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+    rng = np.random.default_rng(11)
+    X_CE = make_transform(rotation_exp(rng.normal(size=3)), rng.normal(size=3))
+    A_list, B_list = [], []
+    for _ in range(60):
+        B = make_transform(rotation_exp(rng.normal(size=3) * 0.2), rng.normal(size=3) * 0.3)
+        A = X_CE @ B @ inverse(X_CE)
+        A = make_transform(rotation_exp(rng.normal(size=3) * 0.005) @ A[:3, :3],
+                           A[:3, 3] + rng.normal(size=3) * 0.002)
+        A_list.append(A)
+        B_list.append(B)
+    A_bad = list(A_list)
+    A_bad[3] = make_transform(rotation_exp([1.0, 0.0, 0.0]), [0.5, 0.0, 0.0])  # a wrong motion
+    f = ManifoldHandEyeFilter.from_motions(A_bad[:10], B_list[:10], 0.005, 0.002)
+    assert not f.start_up.inliers[3] and f.start_up.inliers.sum() == 9
+    for A, B in zip(A_list[10:], B_list[10:]):
+        f.update(A, B)
+    keep = [k for k in range(60) if k != 3]
+    ml = refine_ml([A_list[k] for k in keep], [B_list[k] for k in keep], X_CE, 0.005, 0.002)
+    assert rotation_error_deg(ml.X_CE, f.X_CE) < 0.2 * rotation_error_deg(X_CE, ml.X_CE) + 1e-3
+    assert np.linalg.norm(ml.X_CE[:3, 3] - f.X_CE[:3, 3]) < 0.5e-3

@@ -359,6 +359,23 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
     _residual = staticmethod(motion_residual)
     _retract = staticmethod(retract_pose)
 
+    @classmethod
+    def from_motions(cls, A_list, B_list, rotation_sigma: float, translation_sigma: float,
+                     noise_model: str = "so3", method: str = "park", **kwargs):
+        """A filter started consistently from a short buffer of motion pairs (e.g. the first
+        10): ``ml.robust_initial_estimate`` (outlier-screened classical solution refined to the
+        ML estimate) gives both ``X_CE_init`` and ``P0``; feed the filter the motions that
+        follow. This is the estimator ``handeye-drake benchmark accuracy`` measures as
+        ``manifold_ml_start``. The start-up result (with its ``inliers`` mask) is kept as
+        ``start_up``. Other keyword arguments go to the constructor."""
+        from .ml import robust_initial_estimate
+        start = robust_initial_estimate(A_list, B_list, rotation_sigma, translation_sigma,
+                                        noise_model, method)
+        f = cls(start.X_CE, P0=start.covariance, rotation_sigma=rotation_sigma,
+                translation_sigma=translation_sigma, noise_model=noise_model, **kwargs)
+        f.start_up = start
+        return f
+
     @staticmethod
     def _finite_parts(X):
         return (X,)
