@@ -103,7 +103,9 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except ValueError as e:
-        print(f"handeye-drake: error: {e}", file=sys.stderr)
+        # One line, whatever the message's layout: the command never prints a traceback for bad
+        # input.
+        print("handeye-drake: error: " + " ".join(str(e).split()), file=sys.stderr)
         return 2
 
 

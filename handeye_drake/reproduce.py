@@ -337,15 +337,9 @@ def add_reproduce_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Standalone entry (``python -m handeye_drake.reproduce``) until the CLI wires it."""
-    parser = argparse.ArgumentParser(prog="handeye-drake")
-    add_reproduce_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["reproduce", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return args.func(args)
-    except ValueError as e:
-        print(f"handeye-drake: error: {e}", file=sys.stderr)
-        return 2
+    """``python -m handeye_drake.reproduce ARGS`` = ``handeye-drake reproduce ARGS``."""
+    from .cli import main as cli_main
+    return cli_main(["reproduce", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

@@ -709,21 +709,10 @@ def run_calibrate_command(args) -> int:
     return 0
 
 
-def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="handeye-drake")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_calibrate_parser(sub)
-    return parser
-
-
 def main(argv=None) -> int:
-    """``handeye-drake calibrate ...`` on its own (the project CLI wires the same subcommand)."""
-    args = make_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except ValueError as e:
-        print("handeye-drake: error: " + " ".join(str(e).split()), file=sys.stderr)
-        return 2
+    """``handeye-drake calibrate ...``: the project CLI (``handeye_drake.cli.main``)."""
+    from ..cli import main as cli_main
+    return cli_main(argv)
 
 
 if __name__ == "__main__":

@@ -2,36 +2,5 @@
 no Drake import). The Drake systems using them are ``handeye_drake.systems.camera`` and
 ``handeye_drake.systems.servo``."""
 
-from .camera_model import (
-    MIN_DEPTH,
-    POSE_NOISE_MODELS,
-    CameraIntrinsics,
-    apply_pose_noise,
-    SelfCalibrationMotion,
-    default_self_calibration_motions,
-    end_effector_interaction_matrix,
-    ibvs_twist,
-    normalized_from_pixels,
-    pixel_interaction_matrix,
-    point_interaction_matrix,
-    project_points,
-    saturate_twist,
-    target_visibility,
-)
-
-__all__ = [
-    "MIN_DEPTH",
-    "POSE_NOISE_MODELS",
-    "CameraIntrinsics",
-    "apply_pose_noise",
-    "SelfCalibrationMotion",
-    "default_self_calibration_motions",
-    "end_effector_interaction_matrix",
-    "ibvs_twist",
-    "normalized_from_pixels",
-    "pixel_interaction_matrix",
-    "point_interaction_matrix",
-    "project_points",
-    "saturate_twist",
-    "target_visibility",
-]
+from .camera_model import *  # noqa: F401,F403
+from .camera_model import __all__  # noqa: F401
