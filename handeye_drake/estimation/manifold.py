@@ -224,7 +224,12 @@ class _ErrorStateFilter:
     _dim = 6
 
     def __init__(self, P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                 gate_probability, iterations, max_consecutive_rejections=5):
+                 gate_probability, iterations, max_consecutive_rejections=5,
+                 orthonormalization="svd"):
+        if orthonormalization not in ("svd", "qr", "horn"):
+            raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
+                             f"{orthonormalization!r}")
+        self._orthonormalization = orthonormalization
         if noise_model not in NOISE_MODELS:
             raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
         self._noise_model = noise_model
@@ -313,6 +318,58 @@ class _ErrorStateFilter:
         return self._num_inflations
 
 
+    # The hand-eye part, common to both filters: its error state is the first 6 of the state.
+    def _hand_eye(self) -> np.ndarray:
+        raise NotImplementedError
+
+    @property
+    def X_CE(self) -> np.ndarray:
+        """Estimate of X_CE, the paper's X (an exact rigid transform)."""
+        return self._hand_eye().copy()
+
+    @property
+    def X_EC(self) -> np.ndarray:
+        """Estimate of X_EC = inv(X_CE), the camera on the hand."""
+        return inverse(self._hand_eye())
+
+    @property
+    def state(self) -> np.ndarray:
+        """[vec_row(R_X); t_X] of X_CE, the layout of ``HandEyeKalmanFilter.state``."""
+        X = self._hand_eye()
+        return np.concatenate([X[:3, :3].reshape(9), X[:3, 3]])
+
+    @property
+    def X_CE_covariance(self) -> np.ndarray:
+        """6×6 covariance of X_CE's error [δθ (rad, about C's axes); δt]."""
+        return self._P[:6, :6].copy()
+
+    @property
+    def rotation_std_deg(self) -> np.ndarray:
+        """Standard deviations of the rotation error of X_CE about C's axes (deg)."""
+        return _std_deg_and_length(self._P[:6, :6])[0]
+
+    @property
+    def translation_std(self) -> np.ndarray:
+        """Standard deviations of t_CE's coordinates (length units, in C)."""
+        return _std_deg_and_length(self._P[:6, :6])[1]
+
+    @property
+    def X_EC_covariance(self) -> np.ndarray:
+        """6×6 covariance of X_EC's error [δθ (rad, about E's axes); δt]."""
+        J = inverse_tangent_jacobian(self._hand_eye())
+        return J @ self._P[:6, :6] @ J.T
+
+    @property
+    def X_EC_rotation_std_deg(self) -> np.ndarray:
+        """Standard deviations of the rotation error of X_EC about E's axes (deg)."""
+        return _std_deg_and_length(self.X_EC_covariance)[0]
+
+    @property
+    def X_EC_translation_std(self) -> np.ndarray:
+        """Standard deviations of t_EC's coordinates (length units, in E)."""
+        return _std_deg_and_length(self.X_EC_covariance)[1]
+
+
 class ManifoldHandEyeFilter(_ErrorStateFilter):
     """Error-state EKF on SE(3) for AX = XB, one motion pair at a time.
 
@@ -349,12 +406,9 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
                  orthonormalization: str = "svd", gate_probability: float | None = 0.999,
                  iterations: int = 3, max_consecutive_rejections: int | None = 5):
         self._estimate = as_transform(X_CE_init, "X_CE_init")
-        if orthonormalization not in ("svd", "qr", "horn"):
-            raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
-                             f"{orthonormalization!r}")
-        self._orthonormalization = orthonormalization
         super().__init__(P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                         gate_probability, iterations, max_consecutive_rejections)
+                         gate_probability, iterations, max_consecutive_rejections,
+                         orthonormalization)
 
     _residual = staticmethod(motion_residual)
     _retract = staticmethod(retract_pose)
@@ -390,44 +444,8 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
         R_Am = orthonormalize_unchecked(A[:3, :3], self._orthonormalization)
         return self._update((R_Am, A[:3, 3], B[:3, :3], B[:3, 3]))
 
-    @property
-    def X_CE(self) -> np.ndarray:
-        """Estimate of X_CE (an exact rigid transform)."""
-        return self._estimate.copy()
-
-    @property
-    def X_EC(self) -> np.ndarray:
-        return inverse(self._estimate)
-
-    @property
-    def state(self) -> np.ndarray:
-        """[vec_row(R_X); t_X] of the estimate, the layout of ``HandEyeKalmanFilter.state``."""
-        return np.concatenate([self._estimate[:3, :3].reshape(9), self._estimate[:3, 3]])
-
-    @property
-    def rotation_std_deg(self) -> np.ndarray:
-        """Standard deviations of the rotation error of X_CE about C's axes (deg)."""
-        return _std_deg_and_length(self._P)[0]
-
-    @property
-    def translation_std(self) -> np.ndarray:
-        """Standard deviations of t_CE's coordinates (length units, in C)."""
-        return _std_deg_and_length(self._P)[1]
-
-    @property
-    def X_EC_covariance(self) -> np.ndarray:
-        J = inverse_tangent_jacobian(self._estimate)
-        return J @ self._P @ J.T
-
-    @property
-    def X_EC_rotation_std_deg(self) -> np.ndarray:
-        """Standard deviations of the rotation error of X_EC about E's axes (deg)."""
-        return _std_deg_and_length(self.X_EC_covariance)[0]
-
-    @property
-    def X_EC_translation_std(self) -> np.ndarray:
-        """Standard deviations of t_EC's coordinates (length units, in E)."""
-        return _std_deg_and_length(self.X_EC_covariance)[1]
+    def _hand_eye(self) -> np.ndarray:
+        return self._estimate
 
 
 class HandEyeTargetFilter(_ErrorStateFilter):
@@ -456,17 +474,13 @@ class HandEyeTargetFilter(_ErrorStateFilter):
                  iterations: int = 3, X_BT_init=None, target_prior_cov=None,
                  max_consecutive_rejections: int | None = 5):
         X_CE = as_transform(X_CE_init, "X_CE_init")
-        if orthonormalization not in ("svd", "qr", "horn"):
-            raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
-                             f"{orthonormalization!r}")
-        self._orthonormalization = orthonormalization
         P_hand_eye = check_covariance(np.eye(6) if P0 is None else P0, "P0", 6)
         P_target = check_covariance(1.0 if target_prior_cov is None else target_prior_cov,
                                     "target_prior_cov", 6)
         G1 = check_covariance(0.0 if process_cov is None else process_cov, "process_cov", 6)
         super().__init__(scipy.linalg.block_diag(P_hand_eye, P_target), None, rotation_sigma,
                          translation_sigma, noise_model, gate_probability, iterations,
-                         max_consecutive_rejections)
+                         max_consecutive_rejections, orthonormalization)
         self._G1 = scipy.linalg.block_diag(G1, np.zeros((6, 6)))
         self._target_known = X_BT_init is not None
         X_BT = np.eye(4) if X_BT_init is None else as_transform(X_BT_init, "X_BT_init")
@@ -493,45 +507,10 @@ class HandEyeTargetFilter(_ErrorStateFilter):
             self._target_known = True
         return self._update((inverse(X_BE), R_CTm, X_CT[:3, 3]))
 
-    @property
-    def X_CE(self) -> np.ndarray:
-        return self._estimate[0].copy()
-
-    @property
-    def X_EC(self) -> np.ndarray:
-        return inverse(self._estimate[0])
+    def _hand_eye(self) -> np.ndarray:
+        return self._estimate[0]
 
     @property
     def X_BT(self) -> np.ndarray:
         """Estimate of the target pose in the robot base."""
         return self._estimate[1].copy()
-
-    @property
-    def state(self) -> np.ndarray:
-        X = self._estimate[0]
-        return np.concatenate([X[:3, :3].reshape(9), X[:3, 3]])
-
-    @property
-    def X_CE_covariance(self) -> np.ndarray:
-        return self._P[:6, :6].copy()
-
-    @property
-    def rotation_std_deg(self) -> np.ndarray:
-        return _std_deg_and_length(self._P[:6, :6])[0]
-
-    @property
-    def translation_std(self) -> np.ndarray:
-        return _std_deg_and_length(self._P[:6, :6])[1]
-
-    @property
-    def X_EC_covariance(self) -> np.ndarray:
-        J = inverse_tangent_jacobian(self._estimate[0])
-        return J @ self._P[:6, :6] @ J.T
-
-    @property
-    def X_EC_rotation_std_deg(self) -> np.ndarray:
-        return _std_deg_and_length(self.X_EC_covariance)[0]
-
-    @property
-    def X_EC_translation_std(self) -> np.ndarray:
-        return _std_deg_and_length(self.X_EC_covariance)[1]
