@@ -54,6 +54,17 @@ def desired_features(scenario: Scenario) -> np.ndarray:
     return uv.reshape(-1)
 
 
+def add_noise_sources(builder, system, port_names, period: float) -> None:
+    """Feeds each named (Gaussian random) input port of ``system`` from its own
+    ``RandomSource`` "<port>_source", sampled every ``period`` so that each sample of the system
+    sees fresh noise; ``diagram.SetRandomContext`` then seeds them all."""
+    for name in port_names:
+        port = system.GetInputPort(name)
+        noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
+            RandomDistribution.kGaussian, port.size(), period))
+        builder.Connect(noise.get_output_port(), port)
+
+
 def self_calibration_motions(scenario: Scenario) -> list[SelfCalibrationMotion]:
     """The configured motions, mapped from the camera frame to E through the *guess* of X_EC
     (the true one is unknown to the controller)."""
@@ -135,11 +146,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         pixel_sigma=c.pixel_sigma, pose_noise_model=c.pose_noise_model,
         rotation_sigma=c.rotation_sigma, translation_sigma=c.translation_sigma))
     builder.Connect(ee_sensor.GetOutputPort("X_WE"), camera.GetInputPort("X_WE"))
-    for name in ("pixel_noise", "pose_noise"):
-        port = camera.GetInputPort(name)
-        noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
-            RandomDistribution.kGaussian, port.size(), period))
-        builder.Connect(noise.get_output_port(), port)
+    add_noise_sources(builder, camera, ("pixel_noise", "pose_noise"), period)
 
     servo = builder.AddNamedSystem("servo", VisualServoController(
         intrinsics=intrinsics, p_TQ=p_TQ, desired_features=s_star, gain=scenario.servo.gain,
@@ -368,11 +375,7 @@ def build_calibrator_bench(X_EC_true, period: float = 0.1, rotation_sigma: float
     source = builder.AddNamedSystem("motion_source", PaperMotionSource(
         X_EC_true, X_BT, X_BE0, motions, period, rotation_sigma, translation_sigma,
         pose_noise_model, camera_rotation_sigma, camera_translation_sigma))
-    for name in ("motion_noise", "pose_noise"):
-        port = source.GetInputPort(name)
-        noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
-            RandomDistribution.kGaussian, port.size(), period))
-        builder.Connect(noise.get_output_port(), port)
+    add_noise_sources(builder, source, ("motion_noise", "pose_noise"), period)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=np.eye(4), init_method=init_method,
         estimator=estimator, P0=P0, rotation_sigma=camera_rotation_sigma,
