@@ -1,5 +1,7 @@
 """The full Drake diagram: arm, camera, IBVS and calibrator in closed loop (issue 3)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -262,3 +264,47 @@ def test_calibrator_recovers_from_gate_lock_out(recovery):
         np.testing.assert_allclose(X_CE_end, X_CE_start, atol=1e-8)
         assert rotation_error_deg(inverse(X_EC), X_CE_end) > 1.0
         assert status[2] > 30  # rejected
+
+
+def test_bring_your_own_arm(tmp_path):
+    """Another arm plugs in through the scenario alone: a UR10e (its published DH lengths) with
+    its flange renamed, based where its flange starts at the UR5e's start pose."""
+    from handeye_drake.systems.arm import UR5E_URDF, make_control_plant
+    text = Path(UR5E_URDF).read_text()
+    for joint_origin_ur5e, joint_origin_ur10e in (
+            ('xyz="0 0 0.1625"', 'xyz="0 0 0.1807"'), ('xyz="-0.425 0 0"', 'xyz="-0.6127 0 0"'),
+            ('xyz="-0.3922 0 0"', 'xyz="-0.57155 0 0"'), ('xyz="0 0 0.1333"', 'xyz="0 0 0.17415"'),
+            ('xyz="0 0 0.0997"', 'xyz="0 0 0.11985"'), ('xyz="0 0 0.0996"', 'xyz="0 0 0.11655"')):
+        assert text.count(joint_origin_ur5e) >= 1
+        text = text.replace(joint_origin_ur5e, joint_origin_ur10e)
+    text = text.replace('"tool0"', '"flange"').replace('name="ur5e"', 'name="ur10e"')
+    urdf = tmp_path / "ur10e.urdf"
+    urdf.write_text(text)
+
+    s = load_scenario()
+    q0 = np.radians(s.arm.q0_deg)
+
+    def flange_pose(path, frame):
+        plant = make_control_plant(urdf=path)
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, q0)
+        return plant.CalcRelativeTransform(context, plant.world_frame(),
+                                           plant.GetFrameByName(frame)).GetAsMatrix4()
+    X_W_ur5e = flange_pose(UR5E_URDF, "tool0")
+    X_B_ur10e = flange_pose(str(urdf), "flange")
+    assert np.linalg.norm(X_W_ur5e[:3, 3] - X_B_ur10e[:3, 3]) > 0.1  # really another arm
+    X_WB = X_W_ur5e @ inverse(X_B_ur10e)
+    from handeye_drake.estimation.se3 import rpy
+    s = load_scenario(text=f"""
+arm:
+  urdf: {urdf}
+  ee_frame: flange
+  X_WB:
+    translation: {X_WB[:3, 3].tolist()}
+    rotation: !Rpy {{ deg: {np.degrees(rpy(X_WB[:3, :3])).tolist()} }}
+""")
+    r = run_scenario(s)
+    assert r.feature_error_px[-1] < 2.0
+    assert r.rotation_error_deg[-1] < r.initial_rotation_error_deg
+    assert r.translation_error_rel[-1] < r.initial_translation_error_rel
+    assert np.all(r.ik_status == 0)
