@@ -20,3 +20,16 @@ def simulate_poses(rng, X_EC, n, rotation_scale=0.5, translation_scale=0.3):
     X_BE = [random_pose(rng, rotation_scale, translation_scale) for _ in range(n)]
     X_CT = [inverse(X @ X_EC) @ X_BT for X in X_BE]
     return X_BE, X_CT
+
+
+def random_small_pose(rng, rotation_scale, translation_scale):
+    """Rotation vector ~ N(0, rotation_scale²), translation ~ N(0, translation_scale²)."""
+    return make_transform(rotation_exp(rng.normal(size=3) * rotation_scale),
+                          rng.normal(size=3) * translation_scale)
+
+
+def tangent_error(X_true, X_est):
+    """δ with X_true = X_est ⊕ δ in the filters' convention: [log(R R̂ᵀ); t − t̂]."""
+    from handeye_drake.estimation.se3 import rotation_log
+    return np.concatenate([rotation_log(X_true[:3, :3] @ X_est[:3, :3].T),
+                           X_true[:3, 3] - X_est[:3, 3]])

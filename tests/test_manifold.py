@@ -2,6 +2,7 @@
 (NEES / NIS against χ² bands over seeded Monte-Carlo runs), the NIS gate against wrong camera
 measurements, its lock-out recovery, and the reported uncertainty of X_EC."""
 
+from conftest import random_small_pose, tangent_error
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -9,28 +10,17 @@ from scipy.stats import chi2
 
 from handeye_drake.estimation.manifold import (HandEyeTargetFilter, ManifoldHandEyeFilter,
                                                covariance_inflation, inverse_tangent_jacobian,
-                                               rotation_noise_variance)
+                                               retract_pose, rotation_noise_variance)
 from handeye_drake.estimation.orthonormalize import orthonormalize_unchecked
-from handeye_drake.estimation.se3 import (inverse, make_transform, rotation_exp, rotation_log)
+from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
 from handeye_drake.estimation.validation import rotation_defect
 
 RUNS = 200
 
 
-def _pose(rng, rotation_scale, translation_scale):
-    return make_transform(rotation_exp(rng.normal(size=3) * rotation_scale),
-                          rng.normal(size=3) * translation_scale)
-
-
-def _perturb(X, delta):
-    """X ⊕ δ with the filters' convention R = exp(δθ) R̂, t = t̂ + δt."""
-    return make_transform(rotation_exp(delta[:3]) @ X[:3, :3], X[:3, 3] + delta[3:6])
-
-
-def _error(X_true, X_est):
-    """δ with X_true = X_est ⊕ δ: [log(R R̂ᵀ); t − t̂]."""
-    return np.concatenate([rotation_log(X_true[:3, :3] @ X_est[:3, :3].T),
-                           X_true[:3, 3] - X_est[:3, 3]])
+_pose = random_small_pose
+_perturb = retract_pose
+_error = tangent_error
 
 
 def _so3_motion(rng, X_CE, B, sr, st):

@@ -3,29 +3,22 @@ Jacobians against finite differences, efficiency (Monte-Carlo errors against the
 bound), better than the linear solution on noisy data, robust start-up, input validation — and
 the benchmark's pure helpers."""
 
+from conftest import random_small_pose, tangent_error
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from handeye_drake.estimation import ml
-from handeye_drake.estimation.manifold import ManifoldHandEyeFilter, inverse_tangent_jacobian
-from handeye_drake.estimation.se3 import (inverse, make_transform, rotation_exp, rotation_log)
+from handeye_drake.estimation.manifold import (ManifoldHandEyeFilter, inverse_tangent_jacobian,
+                                               retract_pose)
+from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
 from handeye_drake.estimation.solvers import solve_ax_xb
 from handeye_drake.estimation.validation import rotation_defect
 
 
-def _pose(rng, rotation_scale, translation_scale):
-    return make_transform(rotation_exp(rng.normal(size=3) * rotation_scale),
-                          rng.normal(size=3) * translation_scale)
-
-
-def _perturb(X, delta):
-    return make_transform(rotation_exp(delta[:3]) @ X[:3, :3], X[:3, 3] + delta[3:6])
-
-
-def _error(X_true, X_est):
-    return np.concatenate([rotation_log(X_true[:3, :3] @ X_est[:3, :3].T),
-                           X_true[:3, 3] - X_est[:3, 3]])
+_pose = random_small_pose
+_perturb = retract_pose
+_error = tangent_error
 
 
 def _motions(rng, X_CE, K, rotation_scale=0.3, translation_scale=0.2):
