@@ -118,7 +118,7 @@ class LineNumbers(Sequence):
     __slots__ = ("_a",)
 
     def __init__(self, values=()):
-        a = np.array(values, dtype=np.int64).reshape(-1)
+        a = np.asarray(values, dtype=np.int64).reshape(-1).view()  # no copy of an int64 array
         a.flags.writeable = False
         self._a = a
 
@@ -246,7 +246,7 @@ class _NoProgress:
         pass
 
 
-def _progress(total, desc: str, enabled):
+def _progress(total, desc: str, enabled, unit: str = "B"):
     """A tqdm bar on stderr shown after ``PROGRESS_DELAY_S`` (``enabled`` None: on terminals
     only, so logs and captured output stay clean); stdout is never touched."""
     if enabled is None:
@@ -254,7 +254,7 @@ def _progress(total, desc: str, enabled):
     if not enabled:
         return _NoProgress()
     from tqdm import tqdm
-    return tqdm(total=total, desc=desc, unit="B", unit_scale=True, unit_divisor=1024,
+    return tqdm(total=total, desc=desc, unit=unit, unit_scale=unit == "B", unit_divisor=1024,
                 delay=PROGRESS_DELAY_S, file=sys.stderr, leave=False, mininterval=0.5)
 
 
