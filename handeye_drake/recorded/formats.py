@@ -276,9 +276,20 @@ class InputFile:
     size: int
 
 
+_MAGIC = ((b"\xff\xfe", "UTF-16 text? save it as UTF-8"),
+          (b"\xfe\xff", "UTF-16 text? save it as UTF-8"),
+          (b"\x1f\x8b", "a gzip file: decompress it first"),
+          (b"PK\x03\x04", "a zip archive: extract it first"),
+          (b"\x89PNG", "a PNG image"),
+          (b"#ROSBAG", "a ROS 1 bag: export the poses to a TUM or CSV file first"),
+          (b"\x28\xb5\x2f\xfd", "zstd-compressed: decompress it first"),
+          (b"SQLite format 3", "an SQLite database (a ROS 2 bag?): export the poses first"))
+
+
 def _binary_error(source: str, data, offset: int, what: str) -> ValueError:
     line = data.count(b"\n", 0, offset) + 1
-    return _err(source, line, f"not a text file ({what} at byte offset {offset})")
+    hint = next((f"; {h}" for magic, h in _MAGIC if data.startswith(magic)), "")
+    return _err(source, line, f"not a text file ({what} at byte offset {offset}{hint})")
 
 
 def _first_bad_byte(data, start: int = 0):
@@ -294,6 +305,10 @@ def _first_bad_byte(data, start: int = 0):
     if nul >= 0 and (bad is None or nul < bad[0]):
         return nul, "NUL byte"
     return bad
+
+
+def _size(n: int) -> str:
+    return f"{n / 2**20:g} MB" if n >= 2**20 else f"{n} bytes"
 
 
 def read_input(path, max_bytes: int = MAX_FILE_BYTES, progress: bool | None = None) -> InputFile:
@@ -317,11 +332,11 @@ def read_input(path, max_bytes: int = MAX_FILE_BYTES, progress: bool | None = No
             st = os.fstat(f.fileno())
             regular = stat.S_ISREG(st.st_mode)
             if regular and st.st_size > max_bytes:
-                raise _err(source, None, f"file is larger than {max_bytes / 2**20:g} MB")
+                raise _err(source, None, f"file is larger than {_size(max_bytes)}")
             if regular:  # one read, no copy; a file growing meanwhile still stops at the cap
                 data = f.read(max_bytes + 1)
                 if len(data) > max_bytes:
-                    raise _err(source, None, f"file is larger than {max_bytes / 2**20:g} MB")
+                    raise _err(source, None, f"file is larger than {_size(max_bytes)}")
                 bad = _first_bad_byte(data)
                 if bad is not None:
                     raise _binary_error(source, data, *bad)
@@ -337,7 +352,7 @@ def read_input(path, max_bytes: int = MAX_FILE_BYTES, progress: bool | None = No
                     h.update(chunk)
                     bar.update(len(chunk))
                     if len(buf) > max_bytes:
-                        raise _err(source, None, f"larger than {max_bytes / 2**20:g} MB: reading "
+                        raise _err(source, None, f"larger than {_size(max_bytes)}: reading "
                                    "stopped there (a device or a stream that does not end?)")
                     if b"\x00" in chunk or not chunk.isascii():
                         try:
@@ -507,7 +522,10 @@ def time_unit_hint(timestamps) -> str | None:
         return None
     m = float(np.abs(t).max())
     if m >= MAX_TIMESTAMP_SECONDS:
-        k = int(np.clip(round(math.log10(m / 1.7e9) / 3), 1, 3))
+        k = max(1, round(math.log10(m / 1.7e9) / 3))
+        if k > 3:
+            return (f"timestamps up to {m:.4g} are not seconds ({m / 3.156e7:.3g} years), nor "
+                    "Unix time in milliseconds, microseconds or nanoseconds: implausible times")
         unit, scale = _UNITS[k - 1]
         return (f"timestamps up to {m:.4g} are not seconds ({m / 3.156e7:.3g} years): they look "
                 f"like Unix time in {unit} — rescale them with time_scale={scale:g} (command "
@@ -553,9 +571,11 @@ def _check_timestamps(t: np.ndarray, lines: LineNumbers, source: str) -> None:
         if t[i] == t[i - 1]:
             raise _err(source, li, f"duplicate timestamp {float(t[i])!r} (same as line {lp}); "
                        f"timestamps must be strictly increasing{more}")
+        restart = " — the timestamps start over: recordings concatenated?" \
+            if i > 1 and t[i] <= t[0] else ""
         raise _err(source, li, f"timestamp {float(t[i])!r} is earlier than the previous "
                    f"sample's {float(t[i - 1])!r} (line {lp}); samples must be sorted by "
-                   f"time{more}")
+                   f"time{more}{restart}")
     hint = time_unit_hint(t)
     if hint is not None:
         raise _err(source, None, hint)
@@ -673,6 +693,8 @@ class _Table:
             self.count = got
 
     def _hint(self, number: int, content: str, header: bool = True) -> str:
+        if ";" in content:
+            return " (';' is not a separator: use spaces, tabs or commas)"
         if "." not in content and re.search(r"\d,\d", content) and \
                 re.search(r"\d\s+[-+]?\d", content):
             return " (decimal commas? write 0.5, not 0,5: commas separate fields)"
@@ -687,6 +709,8 @@ class _Table:
             hint = ""
             if ";" in token:
                 hint = " (';' is not a separator: use spaces, tabs or commas)"
+            elif re.fullmatch(r"\d{4}-\d\d-\d\d([T ].*)?|\d+:\d\d(:\d\d)?(\.\d*)?", token):
+                hint = " (dates and clock times are not read: write seconds as a number)"
             elif _looks_like_header(self, token):
                 hint = " (a header line? comment it out with '#')"
             what = "tum field" if self.kind == "tum" else "csv field"
