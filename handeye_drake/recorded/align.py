@@ -314,7 +314,10 @@ def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.
             f"{min_samples} are needed — "
             + (hint if hint else "do the streams use the same clock and time unit?"))
     idx = np.flatnonzero(keep)
-    X_CT = _read_only(camera.poses) if len(idx) == len(camera) else camera.poses[idx]
+    # Samples are dropped at the ends (outside the span) or in gaps: a contiguous run of kept
+    # samples is a view, not a copy of up to 10⁶ poses.
+    contiguous = len(idx) and idx[-1] - idx[0] + 1 == len(idx)
+    X_CT = _read_only(camera.poses[idx[0]:idx[-1] + 1]) if contiguous else camera.poses[idx]
     return AlignedSamples(interp(q[idx]), X_CT, camera.timestamps[idx], idx, lines[idx],
                           camera.source, time_offset, dropped_outside, dropped_gap)
 
@@ -410,6 +413,8 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
             "need at least 4 — reduce the search range or check that both streams use the "
             f"same clock{units}")
     lags = sorted({int(L) for L in lags if 0 < int(L) < len(ok)})
+    if not lags:
+        raise ValueError(f"lags: expected sample counts in [1, {len(ok) - 1}]")
     anchors = np.arange(len(ok))
     if len(ok) > MAX_OFFSET_ANCHORS:
         anchors = np.unique(np.linspace(0, len(ok) - 1, MAX_OFFSET_ANCHORS).round().astype(int))

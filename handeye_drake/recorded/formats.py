@@ -34,9 +34,10 @@ in the same file.
 
 Reading
 -------
-``read_input`` reads a file exactly once, in chunks, up to ``MAX_FILE_BYTES`` (a cap that holds
-for pipes, FIFOs and devices, whose reported size is 0), computing its SHA-256 on the way and
-failing at the first chunk holding a NUL byte or invalid UTF-8 (so ``/dev/zero`` or
+``read_input`` reads an input exactly once, computing its SHA-256, under a byte cap
+(``MAX_FILE_BYTES``) that holds for pipes, FIFOs and devices too (their reported size is 0): a
+regular file is read in one call after its size is checked, anything else in chunks, stopping
+at the cap or at the first chunk holding a NUL byte or invalid UTF-8 (so ``/dev/zero`` or
 ``/dev/urandom`` fail at once); ``read_poses`` parses those bytes and records the digest and the
 byte count in the ``PoseStream``. TUM and CSV text is parsed in blocks of lines by numpy (a fast
 path for plain ASCII numbers); a block the fast path does not accept (other characters, a wrong
@@ -46,11 +47,11 @@ more than ``PROGRESS_DELAY_S`` show a progress bar on stderr when it is a termin
 
 Checks (``ValueError`` naming the file and line): unreadable/empty files; binary content (the
 line and byte offset of the first NUL or invalid UTF-8 byte); malformed lines (field count,
-non-numbers; these are reported first, then the value checks in line order); NaN/inf;
-quaternions whose norm is off by more than ``QUATERNION_NORM_TOLERANCE`` (closer ones are
-normalized); rotation blocks farther than ``ROTATION_TOLERANCE`` from SO(3) (closer ones, e.g.
-printed with few decimals, are projected on SO(3) with the SVD); a last matrix row other than
-[0, 0, 0, 1]; duplicate or decreasing timestamps; timestamps that are not seconds (beyond
+non-numbers; in each block of lines these come first, then the value checks, in line order);
+NaN/inf; quaternions whose norm is off by more than ``QUATERNION_NORM_TOLERANCE`` (closer ones
+are normalized); rotation blocks farther than ``ROTATION_TOLERANCE`` from SO(3) (closer ones,
+e.g. printed with few decimals, are projected on SO(3): the nearest rotation); a last matrix row
+other than [0, 0, 0, 1]; duplicate or decreasing timestamps; timestamps that are not seconds (beyond
 ``MAX_TIMESTAMP_SECONDS`` or with a median period beyond ``MAX_PERIOD_SECONDS``: the message
 says whether they look like milliseconds, microseconds or nanoseconds and which ``time_scale``
 fixes them); translations longer than ``max_translation`` (default 10 m: millimetres?).
@@ -79,7 +80,7 @@ STREAMS = ("robot", "camera")
 #: A quaternion whose norm differs from 1 by at most this is normalized; beyond, an error.
 QUATERNION_NORM_TOLERANCE = 1e-3
 #: Largest accepted max(‖RᵀR − I‖_F, |det R − 1|) of a rotation block read from a file (what 4
-#: printed decimals can cause); accepted blocks are projected on SO(3) (SVD).
+#: printed decimals can cause); accepted blocks are projected on SO(3) (the nearest rotation).
 ROTATION_TOLERANCE = 1e-3
 #: Largest accepted deviation of a matrix's last row from [0, 0, 0, 1].
 HOMOGENEOUS_ROW_TOLERANCE = 1e-6
@@ -98,7 +99,7 @@ MAX_PERIOD_SECONDS = 1e4
 PROGRESS_DELAY_S = 2.0
 
 # Rotation blocks this close to SO(3) are kept as read (a quaternion's matrix is exact to
-# rounding); farther ones, up to ROTATION_TOLERANCE, are projected with the SVD.
+# rounding); farther ones, up to ROTATION_TOLERANCE, are projected on SO(3).
 _PROJECTION_THRESHOLD = 1e-12
 _READ_CHUNK = 1 << 20
 _PARSE_CHUNK = 1 << 22
@@ -222,7 +223,8 @@ def invert_poses(X: np.ndarray) -> np.ndarray:
     out = np.zeros_like(X)
     Rt = np.swapaxes(X[:, :3, :3], 1, 2)
     out[:, :3, :3] = Rt
-    out[:, :3, 3] = -np.einsum("nij,nj->ni", Rt, X[:, :3, 3])
+    with np.errstate(over="ignore", invalid="ignore"):  # huge translations: inf, refused later
+        out[:, :3, 3] = -np.einsum("nij,nj->ni", Rt, X[:, :3, 3])
     out[:, 3, 3] = 1.0
     return out
 
@@ -634,7 +636,8 @@ def pose_stream(poses, timestamps=None, source: str = "poses", lines=None,
             look wrong); None disables the check.
         time_scale: factor applied to every timestamp (1e-9 for nanoseconds, 1e-3 for ms).
 
-    Rotation blocks within ``ROTATION_TOLERANCE`` of SO(3) are projected on it.
+    Rotation blocks within ``ROTATION_TOLERANCE`` of SO(3) are projected on it (the nearest
+    rotation in Frobenius norm).
     """
     source = str(source)
     try:
