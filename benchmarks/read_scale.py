@@ -10,7 +10,7 @@ lines/6 lines, the case that was quadratic) and, in a fresh process, read with `
 (comments, and for YAML every non-numeric character, replaced by spaces beforehand) and
 ``np.loadtxt`` — references measured in the same run, so the ratios do not depend on the
 machine's load. Prints time per line, MB/s, the ratios, and the reader's peak resident memory
-above the interpreter's (``ru_maxrss``), in MB and bytes per line.
+above the interpreter's (``VmHWM``), in MB and bytes per line.
 """
 
 from __future__ import annotations
@@ -54,10 +54,19 @@ def make_text(fmt: str, n: int) -> str:
     return "# t, r00 r01 r02 tx r10 ... 0 0 0 1\n" + body + "\n"
 
 
+def _peak_rss_kb() -> int:
+    """VmHWM: this process's peak resident set (ru_maxrss would include the parent's, as Linux
+    keeps it across exec)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
 def child(path: str, fmt: str, n: int) -> dict:
     """Runs in a fresh interpreter: ours first (for a clean peak RSS), then the references."""
     from handeye_drake.recorded.formats import read_poses
-    base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base_rss = _peak_rss_kb()
     t0 = time.perf_counter()
     if fmt == "yaml":
         s = read_poses(path, "robot", "opencv-yaml")
@@ -66,7 +75,7 @@ def child(path: str, fmt: str, n: int) -> dict:
         s = read_poses(path, "robot", "tum" if fmt == "tum" else "csv-matrix")
         assert len(s) == n
     ours = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base_rss
+    peak = _peak_rss_kb() - base_rss
     del s
     data = Path(path).read_bytes()
     t0 = time.perf_counter()
