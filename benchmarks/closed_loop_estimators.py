@@ -9,7 +9,7 @@ feature error and the real-time factor.
 import argparse
 from pathlib import Path
 
-from handeye_drake.diagram import run_scenario
+from handeye_drake.simulation import run_scenario
 from handeye_drake.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent

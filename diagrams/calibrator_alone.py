@@ -11,8 +11,8 @@ from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
 from handeye_drake import rotation_error_deg, translation_error_rel
-from handeye_drake.diagram import build_calibrator_bench
-from handeye_drake.diagram_render import render_diagram
+from handeye_drake.simulation import build_calibrator_bench
+from handeye_drake.apps.pictures import render_diagram
 from handeye_drake.estimation.se3 import make_transform, rotation_from_rpy, vector_to_pose
 
 if __name__ == "__main__":

@@ -4,8 +4,8 @@ Run: ``python diagrams/closed_loop.py`` — writes closed_loop.dot (and .svg wit
 """
 from pathlib import Path
 
-from handeye_drake.diagram import build_diagram
-from handeye_drake.diagram_render import render_diagram
+from handeye_drake.simulation import build_diagram
+from handeye_drake.apps.pictures import render_diagram
 from handeye_drake.scenario import load_scenario
 
 if __name__ == "__main__":

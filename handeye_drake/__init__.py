@@ -5,7 +5,7 @@ Drake). Frames: robot poses ``X_BE`` (end-effector in base, OpenCV's gripper→b
 ``X_CT`` (target in camera, OpenCV's target→camera); motions A = X_{C(k−1)C(k)}, B = X_{E(k−1)E(k)};
 the paper's X is ``X_CE``, the camera-on-the-hand transform is ``X_EC`` = inv(X_CE).
 The Drake systems live in ``handeye_drake.systems`` and the closed loop in
-``handeye_drake.diagram``.
+``handeye_drake.simulation``; the command-line applications in ``handeye_drake.apps``.
 """
 
 from .estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from handeye_drake import HandEyeKalmanFilter, solve_ax_xb
-from handeye_drake.diagram import build_diagram, run_scenario
+from handeye_drake.simulation import build_diagram, run_scenario
 from handeye_drake.estimation.manifold import ManifoldHandEyeFilter
 from handeye_drake.estimation.se3 import (inverse, make_transform, pose_to_vector, rotation_exp,
                                           vector_to_pose)

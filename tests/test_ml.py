@@ -336,7 +336,7 @@ def test_robust_initial_estimate_rejects_bad_parameters():
 # The benchmark's pure helpers (handeye_drake.benchmark).
 
 def test_benchmark_pose_chain_reproduces_the_motions_and_outliers_are_injected():
-    from handeye_drake import benchmark
+    from handeye_drake.apps import accuracy as benchmark
     rng = np.random.default_rng(14)
     X_CE, A, B = benchmark.paper_motions(rng, 0.05, 0.1, 12)
     assert len(A) == len(B) == 12
@@ -353,7 +353,7 @@ def test_benchmark_pose_chain_reproduces_the_motions_and_outliers_are_injected()
 
 
 def test_benchmark_summary_statistics_hand_computed():
-    from handeye_drake.benchmark import summarize
+    from handeye_drake.apps.accuracy import summarize
     errors = [{"a": [1.0, 0.01], "ml": [1.0, 0.01]},
               {"a": [2.0, 0.02], "ml": [0.5, 0.01]},
               {"a": None, "ml": [0.5, 0.03]}]
@@ -368,7 +368,7 @@ def test_benchmark_summary_statistics_hand_computed():
 
 
 def test_benchmark_motion_noise_from_pose_noise():
-    from handeye_drake.benchmark import motion_noise_from_pose_noise
+    from handeye_drake.apps.accuracy import motion_noise_from_pose_noise
     X_CT = [make_transform(np.eye(3), [0.0, 0.0, 0.5])] * 3
     sr, st = motion_noise_from_pose_noise(X_CT, 0.002, 0.0005)
     assert sr == pytest.approx(np.sqrt(2) * 0.002)
@@ -378,7 +378,7 @@ def test_benchmark_motion_noise_from_pose_noise():
 def test_benchmark_cli_parser_and_argument_checks():
     import argparse
 
-    from handeye_drake.benchmark import add_benchmark_parser, run_accuracy_benchmark
+    from handeye_drake.apps.accuracy import add_benchmark_parser, run_accuracy_benchmark
     parser = argparse.ArgumentParser()
     add_benchmark_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["benchmark", "accuracy", "--runs", "3", "--seed", "7",

@@ -14,12 +14,14 @@ import handeye_drake
 from handeye_drake import rotation_error_deg
 from handeye_drake.estimation.se3 import (inverse, make_transform, quat_wxyz, rotation_exp,
                                           rotation_from_rpy)
-from handeye_drake.recorded import (align_streams, calibrate_streams, estimate_time_offset,
+from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.recorded import (align_streams, estimate_time_offset,
                                     form_pairs, interpolate_poses, parse_poses, pose_stream,
                                     read_poses, robust_hand_eye)
 from handeye_drake.recorded.align import UnobservableTimeOffset
 from handeye_drake.recorded.selection import InconsistentMotions
-from handeye_drake.recorded.calibrate import add_calibrate_parser, main
+from handeye_drake.apps.calibrate import add_calibrate_parser
+from handeye_drake.apps.cli import main
 from handeye_drake.recorded.example import camera_pose, generate_example
 
 DATA = Path(handeye_drake.__file__).parent / "data"

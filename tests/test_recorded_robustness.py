@@ -23,10 +23,11 @@ import handeye_drake
 from handeye_drake import (HandEyeKalmanFilter, calibrate_hand_eye, linear_system, orthonormalize,
                            relative_motions, rotation_error_deg, solve_ax_xb)
 from handeye_drake.estimation.se3 import inverse, make_transform, quat_wxyz, rotation_exp
-from handeye_drake.recorded import (align_streams, calibrate_streams, estimate_time_offset,
+from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.recorded import (align_streams, estimate_time_offset,
                                     interpolate_poses, parse_poses, pose_stream, read_poses,
                                     robust_hand_eye)
-from handeye_drake.recorded.calibrate import main
+from handeye_drake.apps.cli import main
 
 # ------------------------------------------------------------------------------ bad input files
 GOOD_TUM = "0.0 0.1 0.2 0.3 0 0 0 1\n0.1 0.1 0.2 0.3 0 0 0 1\n"

@@ -12,13 +12,13 @@ import pytest
 from handeye_drake import HandEyeKalmanFilter, orthonormalize
 from handeye_drake.estimation.linear_model import linear_system_matrices
 from handeye_drake.estimation.se3 import quat_wxyz, rotation_from_quat_wxyz
-from handeye_drake.experiments import EXPERIMENTS, FIGURES
-from handeye_drake.experiments.common import (batched_paper_filter, camera_motions,
+from handeye_drake.apps.reproduce import EXPERIMENTS, FIGURES
+from handeye_drake.apps.reproduce.common import (batched_paper_filter, camera_motions,
                                               horn_quaternions, linear_systems,
                                               random_hand_eye, random_robot_motions, run_rng,
                                               state_errors)
-from handeye_drake.experiments.two_motion import stats as fig9_stats
-from handeye_drake.reproduce import (ALL_FIGURES, ProgressBar, add_reproduce_parser,
+from handeye_drake.apps.reproduce.two_motion import stats as fig9_stats
+from handeye_drake.apps.reproduce.runner import (ALL_FIGURES, ProgressBar, add_reproduce_parser,
                                      reproduce, run_sweep, write_figures)
 
 

@@ -1,4 +1,5 @@
-"""Hand-eye calibration of real robots from recorded pose streams (the ``calibrate`` command).
+"""Reading recorded robot and camera data, aligning it in time and forming motion pairs (the
+library under ``handeye_drake.apps.calibrate``).
 
 - ``formats``: readers of TUM, CSV-matrix and OpenCV-YAML pose files into validated
   ``PoseStream``s (robot: X_BE, end-effector in base; camera: X_CT, target in camera);
@@ -6,7 +7,6 @@
   the constant clock offset between the streams;
 - ``selection``: motion pairs (consecutive + wide), screw-angle and residual outlier rejection,
   classical solution with held-out validation, bootstrap covariance;
-- ``calibrate``: the pipeline, its JSON/PNG outputs and the ``calibrate`` subcommand;
 - ``example``: the generator of the shipped example recording (``handeye_drake/data``).
 
 Nothing here imports Drake.
@@ -14,8 +14,6 @@ Nothing here imports Drake.
 
 from .align import (AlignedSamples, PoseInterpolator, TimeOffsetEstimate, UnobservableTimeOffset,
                     align_streams, estimate_time_offset, interpolate_poses)
-from .calibrate import (CalibrationResult, add_calibrate_parser, calibrate_files,
-                        calibrate_streams, run_calibrate_command, write_outputs)
 from .formats import (FORMATS, PoseStream, parse_csv_matrix, parse_opencv_yaml, parse_poses,
                       parse_tum, pose_stream, read_poses)
 from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs, pair_residuals,
@@ -24,7 +22,6 @@ from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs,
 __all__ = [
     "FORMATS",
     "AlignedSamples",
-    "CalibrationResult",
     "InconsistentMotions",
     "MotionPairs",
     "PoseInterpolator",
@@ -32,10 +29,7 @@ __all__ = [
     "RobustFit",
     "TimeOffsetEstimate",
     "UnobservableTimeOffset",
-    "add_calibrate_parser",
     "align_streams",
-    "calibrate_files",
-    "calibrate_streams",
     "estimate_time_offset",
     "form_pairs",
     "interpolate_poses",
@@ -47,6 +41,4 @@ __all__ = [
     "pose_stream",
     "read_poses",
     "robust_hand_eye",
-    "run_calibrate_command",
-    "write_outputs",
 ]

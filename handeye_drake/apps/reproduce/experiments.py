@@ -2,7 +2,7 @@
 
 An experiment produces one ``SweepResult`` from independent tasks (``common.Task``) that any
 ``concurrent.futures.Executor`` can run, and writes each of its figures as a PNG, the numbers
-behind it as CSV, and a markdown section for ``summary.md``. ``handeye_drake.reproduce`` drives
+behind it as CSV, and a markdown section for ``summary.md``. ``handeye_drake.apps.reproduce.runner`` drives
 them.
 
     experiment          figures        what

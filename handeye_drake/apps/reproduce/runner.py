@@ -6,11 +6,11 @@
 For each requested figure it writes ``DIR/figN.png`` (laid out like the paper's figure) and
 ``DIR/figN.csv`` (the numbers behind it), then ``DIR/summary.md``: each level's final mean / RMS
 error, plus the settings and timings. The experiments are described in
-``handeye_drake.experiments``.
+``handeye_drake.apps.reproduce.experiments``.
 
 Python API::
 
-    from handeye_drake.reproduce import run_sweep, reproduce
+    from handeye_drake.apps.reproduce import run_sweep, reproduce
     result = run_sweep("fig3", runs=50, seed=0)                 # serial, in this process
     with ProcessPoolExecutor(4) as ex:                          # or a Dask / Ray executor
         result = run_sweep("fig9", runs=500, seed=0, executor=ex)
@@ -335,12 +335,3 @@ def add_reproduce_parser(subparsers) -> argparse.ArgumentParser:
     p.set_defaults(func=_command)
     return p
 
-
-def main(argv=None) -> int:
-    """``python -m handeye_drake.reproduce ARGS`` = ``handeye-drake reproduce ARGS``."""
-    from .cli import main as cli_main
-    return cli_main(["reproduce", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    sys.exit(main())

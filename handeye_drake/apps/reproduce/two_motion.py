@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..estimation.solvers import solve_ax_xb
+from ...estimation.solvers import solve_ax_xb
 from .common import (SweepResult, Task, add_coefficient_noise, camera_motions, chunks, pyplot,
                      quat_wxyz, quaternion_distance, random_hand_eye, run_rng,
                      self_calibration_motions, write_csv)

@@ -37,10 +37,10 @@ from scipy.spatial.transform import Rotation
 from ..estimation.kalman import HandEyeKalmanFilter
 from ..estimation.se3 import inverse, quat_wxyz, rpy
 from ..estimation.solvers import METHODS, solve_ax_xb
-from .align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset, align_streams,
+from ..recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset, align_streams,
                     estimate_time_offset)
-from .formats import FORMATS, MAX_TRANSLATION, PoseStream, read_poses
-from .selection import (RobustFit, bootstrap_covariance, consistency_hint, pair_residuals,
+from ..recorded.formats import FORMATS, MAX_TRANSLATION, PoseStream, read_poses
+from ..recorded.selection import (RobustFit, bootstrap_covariance, consistency_hint, pair_residuals,
                         residual_summary, robust_hand_eye)
 
 DEFAULT_METHOD = "daniilidis"
@@ -708,12 +708,3 @@ def run_calibrate_command(args) -> int:
     print("wrote: " + ", ".join(str(p) for p in written))
     return 0
 
-
-def main(argv=None) -> int:
-    """``handeye-drake calibrate ...``: the project CLI (``handeye_drake.cli.main``)."""
-    from ..cli import main as cli_main
-    return cli_main(argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

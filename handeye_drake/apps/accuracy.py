@@ -66,14 +66,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .estimation.errors import rotation_error_deg, translation_error_rel
-from .estimation.kalman import HandEyeKalmanFilter
-from .estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
-from .estimation.ml import refine_ml, refine_ml_poses
-from .estimation.orthonormalize import orthonormalize_unchecked
-from .estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
-from .estimation.solvers import solve_ax_xb
-from .estimation.validation import ROTATION_TOLERANCE, rotation_defect
+from ..estimation.errors import rotation_error_deg, translation_error_rel
+from ..estimation.kalman import HandEyeKalmanFilter
+from ..estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
+from ..estimation.ml import refine_ml, refine_ml_poses
+from ..estimation.orthonormalize import orthonormalize_unchecked
+from ..estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
+from ..estimation.solvers import solve_ax_xb
+from ..estimation.validation import ROTATION_TOLERANCE, rotation_defect
 
 PAPER_NOISE_LEVELS = (0.01, 0.05, 0.1)
 PAPER_TRANSLATION_SIGMA = 0.1
@@ -360,8 +360,8 @@ def _pose_filters(X_BE, X_CT, X_CE0, P0, rotation_sigma, translation_sigma, gate
 
 def _closed_loop_task(task) -> dict:
     seed, use_cv = task
-    from .diagram import run_scenario
-    from .scenario import load_scenario
+    from ..simulation import run_scenario
+    from ..scenario import load_scenario
 
     scenario = load_scenario()
     scenario.seed = int(seed)

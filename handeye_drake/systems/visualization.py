@@ -9,7 +9,7 @@ from pydrake.geometry import (Cylinder, Meshcat, MeshcatVisualizer, MeshcatVisua
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from .estimation.se3 import vector_to_pose
+from ..estimation.se3 import vector_to_pose
 
 
 def _add_triad(meshcat: Meshcat, path: str, length: float = 0.06, radius: float = 0.003,

@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
-from ..estimation.se3 import make_transform, rotation_exp, rpy
+from ...estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
+from ...estimation.se3 import make_transform, rotation_exp, rpy
 from .common import SweepResult, Task, pyplot, run_rng, write_csv
 
 NAME = "realistic"
@@ -65,7 +65,7 @@ def _draw_scenario(base, rng):
     X_EC = s.X_EC_true_matrix() @ make_transform(
         rotation_exp(rng.normal(0.0, X_EC_ROTATION_STD, 3)),
         rng.normal(0.0, X_EC_TRANSLATION_STD, 3))
-    from ..scenario import transform_matrix
+    from ...scenario import transform_matrix
     X_TC = transform_matrix(s.servo.X_TC_desired, "servo.X_TC_desired") @ make_transform(
         rotation_exp([0.0, 0.0, rng.normal(0.0, DESIRED_YAW_STD)]), np.zeros(3))
     X_TC[:3, 3] += rng.normal(0.0, DESIRED_TRANSLATION_STD, 3)
@@ -76,8 +76,8 @@ def _draw_scenario(base, rng):
 
 
 def _task(seed: int, run: int, duration: float | None) -> dict:
-    from ..diagram import run_scenario
-    from ..scenario import load_scenario
+    from ...simulation import run_scenario
+    from ...scenario import load_scenario
 
     t0 = time.perf_counter()
     base = load_scenario()

@@ -214,7 +214,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         loggers[name] = logger
 
     if meshcat is not None:
-        from .visualization import add_meshcat_visualization
+        from .systems.visualization import add_meshcat_visualization
         add_meshcat_visualization(builder, arm.scene_graph, meshcat, X_WT, p_TQ, period,
                                   camera.GetOutputPort("X_WC"), ee_sensor.GetOutputPort("X_WE"),
                                   calibrator.get_X_EC_output_port())

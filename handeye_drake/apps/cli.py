@@ -17,10 +17,10 @@ from pathlib import Path
 
 
 def _simulate(args) -> int:
-    from .diagram import build_diagram, run_scenario
-    from .diagram_render import render_diagram
+    from ..simulation import build_diagram, run_scenario
+    from .pictures import render_diagram
     from .plots import write_run_plots
-    from .scenario import load_scenario
+    from ..scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
@@ -63,7 +63,7 @@ def _simulate(args) -> int:
 
 
 def _print_scenario(args) -> int:
-    from .scenario import Scenario, dump_scenario
+    from ..scenario import Scenario, dump_scenario
     print(dump_scenario(Scenario()), end="")
     return 0
 
@@ -91,9 +91,9 @@ def make_parser() -> argparse.ArgumentParser:
 
     from .reproduce import add_reproduce_parser
     add_reproduce_parser(sub)
-    from .recorded.calibrate import add_calibrate_parser
+    from .calibrate import add_calibrate_parser
     add_calibrate_parser(sub)
-    from .benchmark import add_benchmark_parser
+    from .accuracy import add_benchmark_parser
     add_benchmark_parser(sub)
     return parser
 

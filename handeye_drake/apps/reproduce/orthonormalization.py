@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..estimation.orthonormalize import orthonormalize_unchecked
+from ...estimation.orthonormalize import orthonormalize_unchecked
 from .common import (SweepResult, Task, chunks, curve_stats, pyplot, quat_wxyz,
                      quaternion_distance, run_rng, write_csv)
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..estimation.solvers import solve_ax_xb
+from ...estimation.solvers import solve_ax_xb
 from .common import (X_RPY_STD, X_TRANSLATION_SIGMA, SweepResult, Task, add_coefficient_noise,
                      batched_paper_filter, camera_motions, chunks, curve_stats, pyplot,
                      random_hand_eye, random_robot_motions, run_rng, self_calibration_motions,
