@@ -67,13 +67,18 @@ from pathlib import Path
 import numpy as np
 
 from ..estimation.errors import rotation_error_deg, translation_error_rel
+from ..estimation.configs import ManifoldFilter, PaperFilter, TargetFilter
+from ..estimation.defaults import (CAMERA_ROTATION_SIGMA, CAMERA_TRANSLATION_SIGMA,
+                                   ROTATION_TOLERANCE)
 from ..estimation.kalman import HandEyeKalmanFilter
 from ..estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
 from ..estimation.ml import refine_ml, refine_ml_poses
 from ..estimation.orthonormalize import orthonormalize_unchecked
-from ..estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
+from ..estimation.se3 import inverse, make_transform
 from ..estimation.solvers import solve_ax_xb
-from ..estimation.validation import ROTATION_TOLERANCE, rotation_defect
+from ..estimation.startup import two_motion_estimate
+from ..estimation.synthetic import chain_poses, inject_wrong_poses, orbit_poses, paper_motions
+from ..estimation.validation import rotation_defect
 
 PAPER_NOISE_LEVELS = (0.01, 0.05, 0.1)
 PAPER_TRANSLATION_SIGMA = 0.1
@@ -82,8 +87,6 @@ OUTLIER_FRACTION = 0.05
 START_UP_MOTIONS = 10
 LARGE_NUM_POSES = 20
 LARGE_ROTATION_STD = 0.3  # rad per axis of the viewing rotation: ~30° rotations
-CAMERA_ROTATION_SIGMA = 0.002  # rad, so3 (the scenario's default camera)
-CAMERA_TRANSLATION_SIGMA = 0.0005  # m
 OPENCV_METHODS = ("tsai", "park", "horaud", "andreff", "daniilidis")
 SETTINGS = ("paper", "outliers", "closed_loop", "large")
 
@@ -132,78 +135,6 @@ def opencv_calibrate(X_BE_list, X_CT_list) -> dict:
 # ---------------------------------------------------------------------------------------------
 # Data.
 
-def _project(X):
-    Y = np.array(X, dtype=float)
-    Y[:3, :3] = orthonormalize_unchecked(Y[:3, :3], "svd")
-    return Y
-
-
-def paper_motions(rng, rotation_sigma: float, translation_sigma: float = PAPER_TRANSLATION_SIGMA,
-                  num_motions: int = PAPER_NUM_MOTIONS):
-    """PAPER §8's data: (X_CE, A_list (raw, non-orthonormal measured motions), B_list)."""
-    X_CE = make_transform(rotation_from_rpy(rng.uniform(0.0, 2 * np.pi, 3)),
-                          rng.normal(0.0, 100.0, 3))
-    B_list = [make_transform(rotation_from_rpy(rng.normal(0.0, 2 * np.pi / 100, 3)),
-                             rng.normal(0.0, 1.0, 3)) for _ in range(num_motions)]
-    X_EC = inverse(X_CE)
-    A_list = []
-    for B in B_list:
-        A = X_CE @ B @ X_EC
-        A[:3, :3] += rotation_sigma * rng.normal(size=(3, 3))
-        A[:3, 3] += translation_sigma * rng.normal(size=3)
-        A_list.append(A)
-    return X_CE, A_list, B_list
-
-
-def chain_poses(A_list, B_list):
-    """Pose sequences reproducing the motions: X_BE_k = X_BE_{k−1} B_k, X_CT_k = A_k⁻¹ X_CT_{k−1}
-    (X_BE_0 = X_CT_0 = I; A rigid), so that X_CT_{k−1} X_CT_k⁻¹ = A_k and X_BE_{k−1}⁻¹ X_BE_k =
-    B_k."""
-    X_BE, X_CT = [np.eye(4)], [np.eye(4)]
-    for A, B in zip(A_list, B_list):
-        X_BE.append(X_BE[-1] @ B)
-        X_CT.append(inverse(A) @ X_CT[-1])
-    return X_BE, X_CT
-
-
-def inject_wrong_poses(X_CT_list, fraction: float, rng):
-    """Replaces round(fraction·K) poses (never the first) by wrong ones: a uniformly random
-    rotation at the position of another, randomly chosen sample. Returns (poses, indices)."""
-    from scipy.spatial.transform import Rotation
-    K = len(X_CT_list)
-    n = int(round(fraction * K))
-    idx = np.sort(rng.choice(np.arange(1, K), size=n, replace=False))
-    out = [X.copy() for X in X_CT_list]
-    for i in idx:
-        j = int(rng.integers(K))
-        out[i] = make_transform(Rotation.random(random_state=rng).as_matrix(), X_CT_list[j][:3, 3])
-    return out, idx
-
-
-def large_motion_poses(rng, num_poses: int = LARGE_NUM_POSES,
-                       rotation_std: float = LARGE_ROTATION_STD,
-                       rotation_sigma: float = CAMERA_ROTATION_SIGMA,
-                       translation_sigma: float = CAMERA_TRANSLATION_SIGMA):
-    """(X_EC, X_BE list, measured X_CT list): a camera orbiting a target at ~0.5 m."""
-    from scipy.spatial.transform import Rotation
-    X_EC = make_transform(Rotation.random(random_state=rng).as_matrix(),
-                          rng.normal(0.0, 0.05, 3))
-    X_BT = make_transform(Rotation.random(random_state=rng).as_matrix(),
-                          np.array([0.6, 0.0, 0.0]) + rng.normal(0.0, 0.05, 3))
-    X_TC0 = make_transform(rotation_from_rpy([np.pi, 0.0, 0.0]), [0.0, 0.0, 0.5])
-    X_CE = inverse(X_EC)
-    X_BE, X_CT = [], []
-    for _ in range(num_poses):
-        X_TC = make_transform(rotation_exp(rng.normal(0.0, rotation_std, 3)),
-                              rng.normal(0.0, 0.02, 3)) @ X_TC0
-        X_BE.append(X_BT @ X_TC @ X_CE)
-        Y = inverse(X_TC)
-        Y[:3, :3] = rotation_exp(rotation_sigma * rng.normal(size=3)) @ Y[:3, :3]
-        Y[:3, 3] += translation_sigma * rng.normal(size=3)
-        X_CT.append(Y)
-    return X_EC, X_BE, X_CT
-
-
 def motion_noise_from_pose_noise(X_CT_list, rotation_sigma: float, translation_sigma: float):
     """Per-axis noise (σ_r rad, σ_t) of a motion A = X_CT_{k−1} X_CT_k⁻¹ differenced from two poses
     with so3 noise (σ_r, σ_t): R_A's rotation-vector error n_{k−1} − R_A n_k (variance 2σ_r²);
@@ -220,7 +151,13 @@ def motion_noise_from_pose_noise(X_CT_list, rotation_sigma: float, translation_s
 
 def _run_filter(f, pairs):
     for a, b in pairs:
-        f.update(a, b)
+        f.update_motion(a, b)
+    return f
+
+
+def _run_poses(f, X_BE, X_CT):
+    for X_be, X_ct in zip(X_BE, X_CT):
+        f.update(X_be, X_ct)
     return f
 
 
@@ -265,9 +202,11 @@ def _paper_task(task) -> dict:
     rng = np.random.default_rng(np.random.SeedSequence(entropy))
     st = PAPER_TRANSLATION_SIGMA
     X_CE, A, B = paper_motions(rng, sigma, st, num_motions)
-    A_rigid = [_project(a) for a in A]
+    A_rigid = [make_transform(orthonormalize_unchecked(a[:3, :3], "svd"), a[:3, 3]) for a in A]
     out_rng = np.random.default_rng(np.random.SeedSequence(list(entropy) + [7]))
-    P0_manifold = [1.0] * 3 + [100.0**2] * 3
+    # The paper's coefficient noise σ: its rotation-vector part has σ/√2 per axis.
+    manifold_config = ManifoldFilter(rotation_sigma=sigma / np.sqrt(2.0), translation_sigma=st,
+                                     initial_variances=[1.0] * 3 + [100.0**2] * 3)
 
     def estimators(A_used, B_used, poses, clean_mask):
         est, info = {}, {}
@@ -276,15 +215,16 @@ def _paper_task(task) -> dict:
                                        orthonormalize_inputs=True))
         if X0 is not None:
             est["paper_kf"] = _safe(lambda: _run_filter(HandEyeKalmanFilter(
-                X0, P0=np.eye(12), rotation_sigma=sigma, translation_sigma=st,
-                noise_model="paper"), zip(A_used[2:], B_used[2:])).X_CE)
+                PaperFilter(rotation_coefficient_sigma=sigma, translation_sigma=st,
+                            initial_variances=[1.0] * 12), X0),
+                zip(A_used[2:], B_used[2:])).X_CE)
             mf = _safe(lambda: _run_filter(ManifoldHandEyeFilter(
-                X0, P0=P0_manifold, rotation_sigma=sigma, translation_sigma=st,
-                noise_model="paper"), zip(A_used[2:], B_used[2:])))
+                manifold_config, X0), zip(A_used[2:], B_used[2:])))
             est["manifold"] = None if mf is None else mf.X_CE
         n = START_UP_MOTIONS
         ours = _safe(lambda: _run_filter(ManifoldHandEyeFilter.from_motions(
-            A_used[:n], B_used[:n], sigma, st, "paper"), zip(A_used[n:], B_used[n:])))
+            manifold_config, A_used[:n], B_used[:n], coefficient_noise=True),
+            zip(A_used[n:], B_used[n:])))
         est[OURS_MOTIONS] = None if ours is None else ours.X_CE
         if ours is not None:
             start = ours.start_up
@@ -339,21 +279,20 @@ def _paper_task(task) -> dict:
 def _pose_filters(X_BE, X_CT, X_CE0, P0, rotation_sigma, translation_sigma, gate):
     """Our filters and the paper's replayed offline on synchronized poses (closed loop / large)."""
     est = {}
-    target = _safe(lambda: _run_filter(HandEyeTargetFilter(
-        X_CE0, P0=P0, rotation_sigma=rotation_sigma, translation_sigma=translation_sigma,
-        noise_model="so3", gate_probability=gate), zip(X_BE, X_CT)))
+    P0 = list(np.diag(P0))
+    target = _safe(lambda: _run_poses(HandEyeTargetFilter(TargetFilter(
+        rotation_sigma=rotation_sigma, translation_sigma=translation_sigma,
+        initial_variances=P0, gate_probability=gate), X_CE0), X_BE, X_CT))
     est[OURS_POSES] = None if target is None else target.X_EC
-    A = [X_CT[k - 1] @ inverse(X_CT[k]) for k in range(1, len(X_CT))]
-    B = [inverse(X_BE[k - 1]) @ X_BE[k] for k in range(1, len(X_BE))]
     sr_A, st_A = motion_noise_from_pose_noise(X_CT, rotation_sigma, translation_sigma)
-    mf = _safe(lambda: _run_filter(ManifoldHandEyeFilter(
-        X_CE0, P0=P0, rotation_sigma=sr_A, translation_sigma=st_A, noise_model="so3",
-        gate_probability=gate), zip(A, B)))
+    mf = _safe(lambda: _run_poses(ManifoldHandEyeFilter(ManifoldFilter(
+        rotation_sigma=sr_A, translation_sigma=st_A, initial_variances=P0,
+        gate_probability=gate), X_CE0), X_BE, X_CT))
     est["manifold"] = None if mf is None else mf.X_EC
     # The paper's filter models coefficient noise: σ_c²/2 = σ_r² per rotation-vector axis.
-    kf = _safe(lambda: _run_filter(HandEyeKalmanFilter(
-        X_CE0, P0=1e-4 * np.eye(12), rotation_sigma=np.sqrt(2.0) * sr_A,
-        translation_sigma=st_A, noise_model="paper"), zip(A, B)))
+    kf = _safe(lambda: _run_poses(HandEyeKalmanFilter(PaperFilter(
+        rotation_coefficient_sigma=np.sqrt(2.0) * sr_A, translation_sigma=st_A), X_CE0),
+        X_BE, X_CT))
     est["paper_kf"] = None if kf is None else kf.X_EC
     return est
 
@@ -372,21 +311,21 @@ def _closed_loop_task(task) -> dict:
     X_CT = [result.X_CT_samples[k] for k in valid]
     phase = result.phase[valid]
     keys = [0] + [int(np.argmax(phase >= m)) for m in range(1, 3)]
-    k = scenario.calibrator
-    X_CE0 = solve_ax_xb([X_CT[keys[i - 1]] @ inverse(X_CT[keys[i]]) for i in (1, 2)],
-                        [inverse(X_BE[keys[i - 1]]) @ X_BE[keys[i]] for i in (1, 2)],
-                        k.init_method, orthonormalize_inputs=True)
-    cam = scenario.camera
+    X_CE0 = two_motion_estimate([X_BE[i] for i in keys], [X_CT[i] for i in keys],
+                                scenario.calibrator.init_method)
+    noise = scenario.camera.model.pose_noise
+    config = scenario.estimator_config()
     est = {"diagram_default": result.X_EC_estimates[-1]}
-    est.update(_pose_filters(X_BE, X_CT, X_CE0, np.diag(k.default_P0()), cam.rotation_sigma,
-                             cam.translation_sigma, k.gate_probability or None))
+    est.update(_pose_filters(X_BE, X_CT, X_CE0, np.diag(config.initial_variances),
+                             noise.rotation_sigma, noise.translation_sigma,
+                             config.gate_probability))
     if use_cv:
         est.update(opencv_calibrate(X_BE, X_CT))
     X_CE_true = inverse(result.X_EC_true)
 
     def fit(X):
-        return refine_ml_poses(X_BE, X_CT, X, cam.rotation_sigma, cam.translation_sigma,
-                               cam.pose_noise_model)
+        return refine_ml_poses(X_BE, X_CT, X, noise.rotation_sigma, noise.translation_sigma,
+                               "so3")
     start = None if est[OURS_POSES] is None else inverse(est[OURS_POSES])
     ref = _ml_reference(fit, [start, X_CE0, X_CE_true])
     est["ml"] = None if ref is None else ref.X_EC
@@ -398,7 +337,7 @@ def _large_task(task) -> dict:
     entropy, use_cv = task
     rng = np.random.default_rng(np.random.SeedSequence(entropy))
     sr, st = CAMERA_ROTATION_SIGMA, CAMERA_TRANSLATION_SIGMA
-    X_EC, X_BE, X_CT = large_motion_poses(rng)
+    X_EC, X_BE, X_CT = orbit_poses(rng, LARGE_NUM_POSES, LARGE_ROTATION_STD, sr, st)
     X_CE_true = inverse(X_EC)
     X_CE0 = _safe(lambda: solve_ax_xb([X_CT[0] @ inverse(X_CT[1]), X_CT[1] @ inverse(X_CT[2])],
                                       [inverse(X_BE[0]) @ X_BE[1], inverse(X_BE[1]) @ X_BE[2]],

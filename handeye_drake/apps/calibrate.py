@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..estimation.configs import PaperFilter
 from ..estimation.kalman import HandEyeKalmanFilter
 from ..estimation.se3 import inverse, quat_wxyz, rpy
 from ..estimation.solvers import METHODS, solve_ax_xb
@@ -204,7 +205,7 @@ class CalibrationResult:
         if self.online is not None:
             o = self.online
             out["online"] = {
-                "filter": "HandEyeKalmanFilter (paper §4, noise_model='full')",
+                "filter": "HandEyeKalmanFilter (PaperFilter, noise_covariance='exact')",
                 "updates": int(len(o.times)),
                 "keyframe_step_deg": o.step_deg,
                 "skipped_updates": o.skipped,
@@ -442,14 +443,19 @@ def replay_online(aligned: AlignedSamples, fit: RobustFit, X_EC_batch: np.ndarra
         raise ValueError("on-line replay: the recording has no two motions rotating ≥ "
                          f"{init_step:g}° about non-parallel axes to initialize the filter"
                          + (f" ({errors[-1]})" if errors else ""))
-    kf = HandEyeKalmanFilter(X_CE_init, rotation_sigma=rotation_sigma,
-                             translation_sigma=translation_sigma, noise_model="full")
+    kf = HandEyeKalmanFilter(PaperFilter(noise_covariance="exact",
+                                         rotation_coefficient_sigma=rotation_sigma,
+                                         translation_sigma=translation_sigma,
+                                         initial_variances=[1.0] * 12), X_CE_init)
     times, rot, trans = [], [], []
     skipped = 0
     for i, j, A, B in keyframe_motions(aligned, fit, step_deg, start=second[1]):
         try:
-            kf.update(A, B)
+            fused = kf.update_motion(A, B)
         except ValueError:
+            skipped += 1
+            continue
+        if not fused:
             skipped += 1
             continue
         X = kf.X_EC

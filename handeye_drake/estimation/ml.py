@@ -52,12 +52,25 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from .manifold import inverse_tangent_jacobian, rotation_noise_variance
-from .se3 import inverse, make_transform, rotation_exp
+from .se3 import inverse, inverse_tangent_jacobian, make_transform, rotation_exp
 from .solvers import METHODS, MIN_ROTATION_ANGLE, solve_ax_xb
 from .validation import as_transform, as_transform_list, check_positive, check_same_length
 
 NOISE_MODELS = ("so3", "paper")
+
+
+def rotation_noise_variance(noise_model: str, rotation_sigma: float) -> float:
+    """Variance of each rotation-vector component of a measured rotation's error.
+
+    "so3": the sensor perturbs the rotation vector: σ². "paper": i.i.d. N(0, σ²) on the 9
+    coefficients of R; after projection onto SO(3) only the skew part of Δ Rᵀ survives, whose
+    axial vector has variance σ²/2 per component.
+    """
+    if noise_model == "so3":
+        return rotation_sigma**2
+    if noise_model == "paper":
+        return 0.5 * rotation_sigma**2
+    raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
 
 #: Smallest eigenvalue of JᵀJ, relative to the largest, for X to count as determined.
 _MIN_RELATIVE_INFORMATION = 1e-13
@@ -74,7 +87,7 @@ class MLResult:
             R = exp(δθ) R̂, t = t̂ + δt (``manifold``'s convention); for the pose form, the X_CE
             block of ``full_covariance`` (X_BT marginalized).
         X_EC_covariance: the same uncertainty for X_EC, through
-            ``manifold.inverse_tangent_jacobian``.
+            ``se3.inverse_tangent_jacobian``.
         X_EC_rotation_std_deg: standard deviations of X_EC's rotation error about E's axes (deg).
         X_EC_translation_std: standard deviations of t_EC's coordinates (length units, in E).
         cost: Σ r² of the whitened residuals at the estimate (χ² with m − n degrees of freedom

@@ -9,11 +9,11 @@
 
 from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor, add_arm,
                   make_control_plant)
-from .calibrator import ESTIMATORS, HandEyeCalibrator
+from .calibrator import HandEyeCalibrator
 from .camera import HandEyeCamera
 from .motion_source import PaperMotionSource
 from .servo import SelfCalibrationMotion, VisualServoController
 
-__all__ = ["DifferentialIkDriver", "ESTIMATORS", "EndEffectorPoseSensor", "HandEyeCalibrator",
+__all__ = ["DifferentialIkDriver", "EndEffectorPoseSensor", "HandEyeCalibrator",
            "HandEyeCamera", "PaperMotionSource", "SelfCalibrationMotion", "UR5E_HOME_Q",
            "UR5E_URDF", "VisualServoController", "add_arm", "make_control_plant"]

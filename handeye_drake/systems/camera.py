@@ -104,6 +104,29 @@ class HandEyeCamera(LeafSystem):
         self._X_CT_port = self.DeclareStateOutputPort("X_CT_measured", self._X_CT_index)
         self._X_WC_port = self.DeclareStateOutputPort("X_WC", self._X_WC_index)
 
+
+    # Ports, as members so users can wire them by handle.
+    def get_X_WE_input_port(self):
+        return self._X_WE_port
+
+    def get_pixel_noise_input_port(self):
+        return self._pixel_noise_port
+
+    def get_pose_noise_input_port(self):
+        return self._pose_noise_port
+
+    def get_features_output_port(self):
+        return self._features_port
+
+    def get_visible_output_port(self):
+        return self._visible_port
+
+    def get_X_CT_output_port(self):
+        return self._X_CT_port
+
+    def get_X_WC_output_port(self):
+        return self._X_WC_port
+
     # Read-only accessors (numpy copies) for scenarios and tests.
     @property
     def intrinsics(self) -> CameraIntrinsics:

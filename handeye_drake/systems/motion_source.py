@@ -69,10 +69,29 @@ class PaperMotionSource(LeafSystem):
             np.concatenate([pose_to_vector(X_BE0), pose_to_vector(X_CT0), [0.0, 0.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._period, self._Step)
         ticket = {self.discrete_state_ticket(self._state_index)}
-        self.DeclareVectorOutputPort("X_BE", 12, self._CalcXBE, prerequisites_of_calc=ticket)
-        self.DeclareVectorOutputPort("X_CT_measured", 12, self._CalcXCT,
+        self._X_BE_port = self.DeclareVectorOutputPort("X_BE", 12, self._CalcXBE,
+                                                       prerequisites_of_calc=ticket)
+        self._X_CT_port = self.DeclareVectorOutputPort("X_CT_measured", 12, self._CalcXCT,
                                      prerequisites_of_calc=ticket)
-        self.DeclareVectorOutputPort("phase", 1, self._CalcPhase, prerequisites_of_calc=ticket)
+        self._phase_port = self.DeclareVectorOutputPort("phase", 1, self._CalcPhase,
+                                                        prerequisites_of_calc=ticket)
+
+
+    # Ports, as members so users can wire them by handle.
+    def get_motion_noise_input_port(self):
+        return self._motion_noise_port
+
+    def get_pose_noise_input_port(self):
+        return self._pose_noise_port
+
+    def get_X_BE_output_port(self):
+        return self._X_BE_port
+
+    def get_X_CT_output_port(self):
+        return self._X_CT_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
 
     def _Step(self, context, discrete_state):
         s = context.get_discrete_state(self._state_index).get_value()

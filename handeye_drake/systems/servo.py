@@ -153,6 +153,32 @@ class VisualServoController(LeafSystem):
         self._error_port = self.DeclareStateOutputPort("feature_error", self._error_index)
         self._status_port = self.DeclareStateOutputPort("status", self._status_index)
 
+
+    # Ports, as members so users can wire them by handle.
+    def get_features_input_port(self):
+        return self._features_port
+
+    def get_visible_input_port(self):
+        return self._visible_port
+
+    def get_X_CT_input_port(self):
+        return self._X_CT_port
+
+    def get_X_CE_input_port(self):
+        return self._X_CE_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    def get_feature_error_output_port(self):
+        return self._error_port
+
+    def get_status_output_port(self):
+        return self._status_port
+
     @staticmethod
     def _check_speed_limit(value, name):
         if value == math.inf:

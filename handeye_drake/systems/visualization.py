@@ -42,6 +42,15 @@ class CameraFramesVisualizer(LeafSystem):
         _add_triad(meshcat, "camera/estimated", length=0.08, radius=0.002, opacity=0.5)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._Publish)
 
+    def get_X_WC_input_port(self):
+        return self._X_WC_port
+
+    def get_X_WE_input_port(self):
+        return self._X_WE_port
+
+    def get_X_EC_input_port(self):
+        return self._X_EC_port
+
     def _Publish(self, context):
         t = context.get_time()
         X_WC = vector_to_pose(self._X_WC_port.Eval(context))
@@ -65,6 +74,6 @@ def add_meshcat_visualization(builder, scene_graph, meshcat: Meshcat, X_WT, p_TQ
     _add_triad(meshcat, "target/frame", length=0.05)
     frames = builder.AddNamedSystem("camera_frames_visualizer",
                                     CameraFramesVisualizer(meshcat, period))
-    builder.Connect(X_WC_port, frames.GetInputPort("X_WC"))
-    builder.Connect(X_WE_port, frames.GetInputPort("X_WE"))
-    builder.Connect(X_EC_estimate_port, frames.GetInputPort("X_EC_estimate"))
+    builder.Connect(X_WC_port, frames.get_X_WC_input_port())
+    builder.Connect(X_WE_port, frames.get_X_WE_input_port())
+    builder.Connect(X_EC_estimate_port, frames.get_X_EC_input_port())

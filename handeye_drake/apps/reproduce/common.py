@@ -1,4 +1,4 @@
-"""Shared pieces of the paper's experiments (PAPER §8): random draws, the batched paper filter,
+"""Shared pieces of the paper's experiments (docs/method.md §8): the batched paper filter,
 error measures over stacks, and the result/task types of a sweep. numpy/scipy only.
 
 Reproducibility: every simulated run r of an experiment draws from its own generator
@@ -19,70 +19,15 @@ from typing import Any, Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-#: Std of each roll-pitch-yaw angle of a random robot motion (rad), PAPER §8.
-MOTION_RPY_SIGMA = 2.0 * np.pi / 100.0
-#: Std of each translation coordinate of a random robot motion (length units).
-MOTION_TRANSLATION_SIGMA = 1.0
-#: Std of each translation coordinate of the random hand-eye X (length units).
-X_TRANSLATION_SIGMA = 100.0
+
 #: Std of an angle drawn uniformly in [0, 2π): the "spread" of X's roll-pitch-yaw angles.
 X_RPY_STD = 2.0 * np.pi / np.sqrt(12.0)
-#: The two predefined self-calibration motions: rotations of this angle about E's x, then y axis.
-SELF_CALIBRATION_ANGLE = np.radians(30.0)
 
 
 def run_rng(seed: int, code: int, run: int) -> np.random.Generator:
     """The generator of run ``run`` of the experiment numbered ``code``."""
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(int(code),
                                                                                 int(run))))
-
-
-# ---------------------------------------------------------------------------------------------
-# Random draws (PAPER §8). Rotations from roll-pitch-yaw use Drake's RollPitchYaw convention
-# (extrinsic X-Y-Z), as ``se3.rotation_from_rpy``.
-
-def transforms(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(..., 4, 4) homogeneous transforms from (..., 3, 3) rotations and (..., 3) translations."""
-    X = np.zeros(R.shape[:-2] + (4, 4))
-    X[..., :3, :3] = R
-    X[..., :3, 3] = t
-    X[..., 3, 3] = 1.0
-    return X
-
-
-def random_hand_eye(rng: np.random.Generator) -> np.ndarray:
-    """X = X_CE: roll-pitch-yaw uniform in [0, 2π), translation coordinates N(0, 100²)."""
-    R = Rotation.from_euler("xyz", rng.uniform(0.0, 2.0 * np.pi, 3)).as_matrix()
-    return transforms(R, rng.normal(0.0, X_TRANSLATION_SIGMA, 3))
-
-
-def random_robot_motions(rng: np.random.Generator, K: int) -> np.ndarray:
-    """K robot motions B = X_{E(k−1)E(k)}: rpy ~ N(0, (2π/100)²), translation ~ N(0, 1)."""
-    R = Rotation.from_euler("xyz", rng.normal(0.0, MOTION_RPY_SIGMA, (K, 3))).as_matrix()
-    return transforms(R.reshape(K, 3, 3), rng.normal(0.0, MOTION_TRANSLATION_SIGMA, (K, 3)))
-
-
-def self_calibration_motions() -> np.ndarray:
-    """The two predefined robot motions (2, 4, 4): 30° about E's x axis, then about its y axis."""
-    R = Rotation.from_rotvec([[SELF_CALIBRATION_ANGLE, 0.0, 0.0],
-                              [0.0, SELF_CALIBRATION_ANGLE, 0.0]]).as_matrix()
-    return transforms(R, np.zeros((2, 3)))
-
-
-def camera_motions(X_CE: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Exact camera motions A = X B X⁻¹ (so that A X = X B) for a stack B (..., 4, 4)."""
-    X_inv = np.linalg.inv(X_CE)
-    return X_CE @ B @ X_inv
-
-
-def add_coefficient_noise(A: np.ndarray, unit_rotation: np.ndarray, unit_translation: np.ndarray,
-                          rotation_sigma: float, translation_sigma: float) -> np.ndarray:
-    """PAPER §5's measurement: R_A + σ_r Δ (every coefficient, not re-orthonormalized) and
-    t_A + σ_t v, from unit-variance draws Δ (..., 3, 3) and v (..., 3)."""
-    A = A.copy()
-    A[..., :3, :3] += rotation_sigma * unit_rotation
-    A[..., :3, 3] += translation_sigma * unit_translation
-    return A
 
 
 # ---------------------------------------------------------------------------------------------

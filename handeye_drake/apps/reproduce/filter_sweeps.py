@@ -34,10 +34,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...estimation.solvers import solve_ax_xb
-from .common import (X_RPY_STD, X_TRANSLATION_SIGMA, SweepResult, Task, add_coefficient_noise,
-                     batched_paper_filter, camera_motions, chunks, curve_stats, pyplot,
-                     random_hand_eye, random_robot_motions, run_rng, self_calibration_motions,
-                     state_errors, transforms, write_csv)
+from ...estimation.synthetic import (X_TRANSLATION_SIGMA, add_coefficient_noise, camera_motions,
+                                     random_hand_eye, random_robot_motions,
+                                     self_calibration_motions, transforms)
+from .common import (X_RPY_STD, SweepResult, Task, batched_paper_filter, chunks, curve_stats,
+                     pyplot, run_rng, state_errors, write_csv)
 
 LEVELS = (0.0, 0.01, 0.05, 0.1, 0.5, 1.0)
 INIT_LEVELS = (0.0, 0.05, 0.10, 0.50, 0.75, 1.00)

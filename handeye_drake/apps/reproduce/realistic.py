@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ...estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
+from ...estimation.configs import PaperFilter
 from ...estimation.se3 import make_transform, rotation_exp, rpy
 from .common import SweepResult, Task, pyplot, run_rng, write_csv
 
@@ -45,7 +46,8 @@ DEFAULT_RUNS = 10
 ESTIMATORS = ("paper", "target")
 LABELS = {"paper": "paper's Kalman filter", "target": "our default estimator (\"target\")"}
 COLORS = {"paper": "C0", "target": "C2"}
-PAPER_TUNING = {"rotation_sigma": 0.004, "translation_sigma": 0.003, "min_rotation_deg": 0.0}
+PAPER_TUNING = {"rotation_coefficient_sigma": 0.004, "translation_sigma": 0.003,
+                "min_rotation_deg": 0.0}
 X_EC_ROTATION_STD = np.radians(3.0)
 X_EC_TRANSLATION_STD = 0.01
 DESIRED_TRANSLATION_STD = 0.02
@@ -53,23 +55,24 @@ DESIRED_YAW_STD = np.radians(10.0)
 MAX_ATTEMPTS = 10
 
 
-def _schema_transform(X):
+def _schema_transform(X, base_frame=None):
     from pydrake.common.schema import Rotation, Transform
-    return Transform(translation=[float(v) for v in X[:3, 3]],
+    return Transform(base_frame=base_frame, translation=[float(v) for v in X[:3, 3]],
                      rotation=Rotation.Rpy(deg=[float(v) for v in np.degrees(rpy(X[:3, :3]))]))
 
 
 def _draw_scenario(base, rng):
     """A perturbed copy of ``base`` (see the module docstring) and its X_EC."""
+    from ...scenario import transform_matrix
     s = copy.deepcopy(base)
-    X_EC = s.X_EC_true_matrix() @ make_transform(
+    X_PB = s.camera.sensor.X_PB
+    X_EC = transform_matrix(X_PB, "camera.sensor.X_PB") @ make_transform(
         rotation_exp(rng.normal(0.0, X_EC_ROTATION_STD, 3)),
         rng.normal(0.0, X_EC_TRANSLATION_STD, 3))
-    from ...scenario import transform_matrix
     X_TC = transform_matrix(s.servo.X_TC_desired, "servo.X_TC_desired") @ make_transform(
         rotation_exp([0.0, 0.0, rng.normal(0.0, DESIRED_YAW_STD)]), np.zeros(3))
     X_TC[:3, 3] += rng.normal(0.0, DESIRED_TRANSLATION_STD, 3)
-    s.X_EC_true = _schema_transform(X_EC)
+    s.camera.sensor.X_PB = _schema_transform(X_EC, X_PB.base_frame)
     s.servo.X_TC_desired = _schema_transform(X_TC)
     s.seed = int(rng.integers(0, 2**31 - 1))
     return s, X_EC
@@ -86,9 +89,7 @@ def _task(seed: int, run: int, duration: float | None) -> dict:
     rng = run_rng(seed, CODE, run)
     for attempt in range(1, MAX_ATTEMPTS + 1):
         scenario, X_EC = _draw_scenario(base, rng)
-        scenario.calibrator.estimator = "paper"
-        for k, v in PAPER_TUNING.items():
-            setattr(scenario.calibrator, k, v)
+        scenario.calibrator.estimator = PaperFilter(**PAPER_TUNING)
         try:
             results = {"paper": run_scenario(scenario)}
             break
@@ -96,7 +97,8 @@ def _task(seed: int, run: int, duration: float | None) -> dict:
             if attempt == MAX_ATTEMPTS:
                 raise
     ours = copy.deepcopy(base)
-    ours.X_EC_true, ours.servo.X_TC_desired = scenario.X_EC_true, scenario.servo.X_TC_desired
+    ours.camera.sensor.X_PB = scenario.camera.sensor.X_PB
+    ours.servo.X_TC_desired = scenario.servo.X_TC_desired
     ours.seed = scenario.seed
     results["target"] = run_scenario(ours)
 
@@ -217,7 +219,7 @@ def summary(result: SweepResult, figure: str) -> str:
              "Default scenario (UR5e, 30 Hz camera with pose noise 0.002 rad / 0.5 mm on X_CT) "
              "with a random X_EC (3° / 1 cm around the default) and desired pose per run; two 20° "
              "self-calibration rotations solved with Daniilidis; paper's filter with σ_r = "
-             f"{PAPER_TUNING['rotation_sigma']:g}, σ_t = {PAPER_TUNING['translation_sigma']:g} m, "
+             f"{PAPER_TUNING['rotation_coefficient_sigma']:g}, σ_t = {PAPER_TUNING['translation_sigma']:g} m, "
              "P0 = 1e-4 I12, an update per camera sample.", "",
              "| estimate | rotation ‖q − q̂‖ mean / RMS | rotation (deg) mean | translation "
              "(rel.) mean / RMS | runs better than two-motion (rot. / transl.) | final feature "

@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from ...estimation.solvers import solve_ax_xb
-from .common import (SweepResult, Task, add_coefficient_noise, camera_motions, chunks, pyplot,
-                     quat_wxyz, quaternion_distance, random_hand_eye, run_rng,
-                     self_calibration_motions, write_csv)
+from ...estimation.synthetic import (add_coefficient_noise, camera_motions, random_hand_eye,
+                                     self_calibration_motions)
+from .common import (SweepResult, Task, chunks, pyplot, quat_wxyz, quaternion_distance, run_rng,
+                     write_csv)
 
 NAME = "two_motion"
 FIGURES = ("fig9",)

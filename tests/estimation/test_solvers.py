@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import random_pose, simulate_poses
+from tests.fixtures import random_pose, simulate_poses
 
 from handeye_drake.estimation.linear_model import relative_motions
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_angle, rotation_exp

@@ -2,15 +2,15 @@
 (NEES / NIS against χ² bands over seeded Monte-Carlo runs), the NIS gate against wrong camera
 measurements, its lock-out recovery, and the reported uncertainty of X_EC."""
 
-from conftest import random_small_pose, tangent_error
+from tests.fixtures import manifold_filter, random_small_pose, tangent_error, target_filter
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from handeye_drake.estimation.manifold import (HandEyeTargetFilter, ManifoldHandEyeFilter,
-                                               covariance_inflation, inverse_tangent_jacobian,
-                                               retract_pose, rotation_noise_variance)
+from handeye_drake.estimation.manifold import ManifoldHandEyeFilter, covariance_inflation
+from handeye_drake.estimation.ml import rotation_noise_variance
+from handeye_drake.estimation.se3 import inverse_tangent_jacobian, retract_pose
 from handeye_drake.estimation.orthonormalize import orthonormalize_unchecked
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
 from handeye_drake.estimation.validation import rotation_defect
@@ -51,9 +51,10 @@ def _nees_band(dof, runs=RUNS, p=0.95):
 def test_manifold_filter_keeps_an_exact_rotation_at_every_step(noise_model):
     rng = np.random.default_rng(1)
     X_CE = _pose(rng, 1.0, 0.1)
-    f = ManifoldHandEyeFilter(_perturb(X_CE, [0.1, -0.1, 0.05, 0.02, 0.0, -0.01]),
-                              P0=np.diag([0.01] * 3 + [1e-3] * 3), rotation_sigma=0.05,
-                              translation_sigma=0.01, noise_model=noise_model)
+    f = manifold_filter(_perturb(X_CE, [0.1, -0.1, 0.05, 0.02, 0.0, -0.01]),
+                        P0=np.diag([0.01] * 3 + [1e-3] * 3),
+                        rotation_sigma=0.05 / np.sqrt(2.0) if noise_model == "paper" else 0.05,
+                        translation_sigma=0.01)
     for _ in range(50):
         B = _pose(rng, 0.3, 0.1)
         if noise_model == "paper":  # additive coefficient noise: A_meas is not orthonormal
@@ -62,7 +63,7 @@ def test_manifold_filter_keeps_an_exact_rotation_at_every_step(noise_model):
             assert rotation_defect(A_meas[:3, :3]) > 1e-3
         else:
             A_meas = _so3_motion(rng, X_CE, B, 0.05, 0.01)
-        f.update(A_meas, B)
+        f.update_motion(A_meas, B)
         assert rotation_defect(f.X_CE[:3, :3]) < 1e-12
         np.testing.assert_allclose(f.X_CE @ f.X_EC, np.eye(4), atol=1e-12)
         assert np.all(np.linalg.eigvalsh(f.covariance) > 0)
@@ -72,9 +73,9 @@ def test_manifold_filter_keeps_an_exact_rotation_at_every_step(noise_model):
 def test_target_filter_keeps_exact_rotations_at_every_step():
     rng = np.random.default_rng(2)
     X_CE, X_BT = _pose(rng, 1.0, 0.1), _pose(rng, 1.0, 0.5)
-    f = HandEyeTargetFilter(_perturb(X_CE, [0.05, 0.02, -0.03, 0.01, 0.01, 0.0]),
-                            P0=np.diag([0.01] * 3 + [1e-3] * 3), rotation_sigma=0.01,
-                            translation_sigma=0.002, noise_model="paper")
+    f = target_filter(_perturb(X_CE, [0.05, 0.02, -0.03, 0.01, 0.01, 0.0]),
+                      P0=np.diag([0.01] * 3 + [1e-3] * 3), rotation_sigma=0.01 / np.sqrt(2.0),
+                      translation_sigma=0.002)
     for _ in range(40):
         X_BE = _pose(rng, 0.5, 0.2)
         X_CT = X_CE @ inverse(X_BE) @ X_BT
@@ -100,11 +101,10 @@ def test_manifold_filter_nees_and_reported_x_ec_std_are_consistent():
     for _ in range(RUNS):
         X_CE = _pose(rng, 1.5, 0.1)
         X_init = _perturb(X_CE, -(L @ rng.normal(size=6)))  # truth = init ⊕ δ, δ ~ N(0, P0)
-        f = ManifoldHandEyeFilter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st,
-                                  noise_model="so3")
+        f = manifold_filter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st)
         for _ in range(K):
             B = _pose(rng, 0.4, 0.1)
-            f.update(_so3_motion(rng, X_CE, B, sr, st), B)
+            f.update_motion(_so3_motion(rng, X_CE, B, sr, st), B)
         e = _error(X_CE, f.X_CE)
         nees.append(e @ np.linalg.solve(f.covariance, e))
         e_EC = _error(inverse(X_CE), f.X_EC)
@@ -134,10 +134,10 @@ def test_target_filter_nees_is_consistent_full_state_and_hand_eye_block():
         full = run < RUNS
         if full:
             X_BT0 = _perturb(X_BT, -(np.linalg.cholesky(P_T) @ rng.normal(size=6)))
-            f = HandEyeTargetFilter(X_CE0, P0=P0, rotation_sigma=sr, translation_sigma=st,
-                                    X_BT_init=X_BT0, target_prior_cov=P_T)
+            f = target_filter(X_CE0, P0=P0, rotation_sigma=sr, translation_sigma=st,
+                              X_BT_init=X_BT0, target_prior_cov=P_T)
         else:
-            f = HandEyeTargetFilter(X_CE0, P0=P0, rotation_sigma=sr, translation_sigma=st)
+            f = target_filter(X_CE0, P0=P0, rotation_sigma=sr, translation_sigma=st)
         for _ in range(K):
             X_BE = _pose(rng, 0.4, 0.2)
             f.update(X_BE, _so3_pose(rng, X_CE @ inverse(X_BE) @ X_BT, sr, st))
@@ -168,7 +168,7 @@ def test_x_ec_covariance_uses_the_inverse_tangent_jacobian():
     np.testing.assert_allclose(J, J_fd, atol=1e-8)
     M = rng.normal(size=(6, 6))
     P0 = M @ M.T + 0.1 * np.eye(6)
-    f = ManifoldHandEyeFilter(X, P0=P0)
+    f = manifold_filter(X, P0=P0)
     np.testing.assert_allclose(f.X_EC_covariance, J @ P0 @ J.T, rtol=1e-12)
     np.testing.assert_allclose(f.X_EC_rotation_std_deg,
                                np.degrees(np.sqrt(np.diag(J @ P0 @ J.T)[:3])), rtol=1e-12)
@@ -198,8 +198,8 @@ def test_paper_noise_maps_to_half_the_coefficient_variance_per_axis():
 # The NIS gate.
 
 def _converged_filter(rng, X_CE, sr, st, **kwargs):
-    f = ManifoldHandEyeFilter(X_CE, P0=np.diag([1e-4] * 3 + [1e-6] * 3), rotation_sigma=sr,
-                              translation_sigma=st, noise_model="so3", **kwargs)
+    f = manifold_filter(X_CE, P0=np.diag([1e-4] * 3 + [1e-6] * 3), rotation_sigma=sr,
+                        translation_sigma=st, **kwargs)
     return f
 
 
@@ -213,7 +213,7 @@ def test_gate_accepts_consistent_measurements_at_the_expected_rate():
     nis = []
     for _ in range(2000):
         B = _pose(rng, 0.3, 0.1)
-        accepted = f.update(_so3_motion(rng, X_CE, B, sr, st), B)
+        accepted = f.update_motion(_so3_motion(rng, X_CE, B, sr, st), B)
         assert accepted == (not f.last_rejected)
         nis.append(f.last_nis)
     assert f.num_rejected <= 20
@@ -237,14 +237,14 @@ def test_gate_rejects_wrong_camera_measurements_and_keeps_the_estimate_clean():
         B = _pose(rng, 0.3, 0.1)
         motions.append((_so3_motion(rng, X_CE, B, sr, st), B))
     wrong_at = set(range(5, 60, 6))  # 10 wrong measurements, none consecutive
-    clean = ManifoldHandEyeFilter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st)
-    dirty = ManifoldHandEyeFilter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st)
+    clean = manifold_filter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st)
+    dirty = manifold_filter(X_init, P0=P0, rotation_sigma=sr, translation_sigma=st)
     for k, (A, B) in enumerate(motions):
-        clean.update(A, B)
+        clean.update_motion(A, B)
         if k in wrong_at:
-            assert dirty.update(_random_wrong_pose(rng), B) is False
+            assert dirty.update_motion(_random_wrong_pose(rng), B) is False
             assert dirty.last_rejected and dirty.last_nis > chi2.ppf(0.999, 6)
-        dirty.update(A, B)
+        dirty.update_motion(A, B)
     assert dirty.num_rejected == clean.num_rejected + len(wrong_at)
     np.testing.assert_array_equal(dirty.X_CE, clean.X_CE)
     np.testing.assert_array_equal(dirty.covariance, clean.covariance)
@@ -255,9 +255,9 @@ def test_target_filter_gate_rejects_a_wrong_target_pose():
     rng = np.random.default_rng(13)
     sr, st = 0.005, 0.001
     X_CE, X_BT = _pose(rng, 1.5, 0.1), _pose(rng, 1.5, 0.5)
-    f = HandEyeTargetFilter(X_CE, P0=np.diag([1e-4] * 3 + [1e-5] * 3), rotation_sigma=sr,
-                            translation_sigma=st, X_BT_init=X_BT,
-                            target_prior_cov=np.diag([1e-4] * 3 + [1e-5] * 3))
+    f = target_filter(X_CE, P0=np.diag([1e-4] * 3 + [1e-5] * 3), rotation_sigma=sr,
+                      translation_sigma=st, X_BT_init=X_BT,
+                      target_prior_cov=np.diag([1e-4] * 3 + [1e-5] * 3))
     for _ in range(10):
         X_BE = _pose(rng, 0.4, 0.2)
         f.update(X_BE, _so3_pose(rng, X_CE @ inverse(X_BE) @ X_BT, sr, st))
@@ -281,14 +281,14 @@ def test_gate_lock_out_is_recovered_and_true_outliers_stay_rejected():
     X_CE = _pose(rng, 1.5, 0.1)
     X_bad = _perturb(X_CE, [0.2, -0.15, 0.1, 0.02, -0.02, 0.01])
     P0 = np.diag([np.radians(0.3)**2] * 3 + [0.001**2] * 3)
-    stuck = ManifoldHandEyeFilter(X_bad, P0=P0, rotation_sigma=sr, translation_sigma=st,
-                                  max_consecutive_rejections=None)
-    recovered = ManifoldHandEyeFilter(X_bad, P0=P0, rotation_sigma=sr, translation_sigma=st)
+    stuck = manifold_filter(X_bad, P0=P0, rotation_sigma=sr, translation_sigma=st,
+                            max_consecutive_rejections=None)
+    recovered = manifold_filter(X_bad, P0=P0, rotation_sigma=sr, translation_sigma=st)
     for _ in range(60):
         B = _pose(rng, 0.3, 0.1)
         A = _so3_motion(rng, X_CE, B, sr, st)
-        stuck.update(A, B)
-        recovered.update(A, B)
+        stuck.update_motion(A, B)
+        recovered.update_motion(A, B)
     assert stuck.num_rejected >= 55
     np.testing.assert_allclose(stuck.X_CE, X_bad, atol=0.02)  # (almost) frozen at the bad start
     assert recovered.num_inflations >= 1
@@ -299,7 +299,7 @@ def test_gate_lock_out_is_recovered_and_true_outliers_stay_rejected():
     rejected = recovered.num_rejected
     estimate = recovered.X_CE
     for _ in range(10):
-        assert recovered.update(_random_wrong_pose(rng), _pose(rng, 0.3, 0.1)) is False
+        assert recovered.update_motion(_random_wrong_pose(rng), _pose(rng, 0.3, 0.1)) is False
     assert recovered.num_rejected == rejected + 10
     assert recovered.num_inflations == inflations
     np.testing.assert_array_equal(recovered.X_CE, estimate)
@@ -317,10 +317,10 @@ def test_covariance_inflation_hand_computed():
 
 @pytest.mark.parametrize("value", [0, -1, 2.5])
 def test_max_consecutive_rejections_is_validated(value):
-    with pytest.raises(ValueError, match="max_consecutive_rejections"):
-        ManifoldHandEyeFilter(np.eye(4), max_consecutive_rejections=value)
-    with pytest.raises(ValueError, match="max_consecutive_rejections"):
-        HandEyeTargetFilter(np.eye(4), max_consecutive_rejections=value)
+    with pytest.raises(ValueError, match="ManifoldFilter.max_consecutive_rejections"):
+        manifold_filter(np.eye(4), max_consecutive_rejections=value)
+    with pytest.raises(ValueError, match="TargetFilter.max_consecutive_rejections"):
+        target_filter(np.eye(4), max_consecutive_rejections=value)
 
 
 def test_from_motions_start_matches_batch_ml():
@@ -342,10 +342,12 @@ def test_from_motions_start_matches_batch_ml():
         B_list.append(B)
     A_bad = list(A_list)
     A_bad[3] = make_transform(rotation_exp([1.0, 0.0, 0.0]), [0.5, 0.0, 0.0])  # a wrong motion
-    f = ManifoldHandEyeFilter.from_motions(A_bad[:10], B_list[:10], 0.005, 0.002)
+    from handeye_drake.estimation.configs import ManifoldFilter
+    f = ManifoldHandEyeFilter.from_motions(
+        ManifoldFilter(rotation_sigma=0.005, translation_sigma=0.002), A_bad[:10], B_list[:10])
     assert not f.start_up.inliers[3] and f.start_up.inliers.sum() == 9
     for A, B in zip(A_list[10:], B_list[10:]):
-        f.update(A, B)
+        f.update_motion(A, B)
     keep = [k for k in range(60) if k != 3]
     ml = refine_ml([A_list[k] for k in keep], [B_list[k] for k in keep], X_CE, 0.005, 0.002)
     assert rotation_error_deg(ml.X_CE, f.X_CE) < 0.2 * rotation_error_deg(X_CE, ml.X_CE) + 1e-3

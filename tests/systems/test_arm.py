@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.inverse_kinematics import DifferentialInverseKinematicsStatus
 from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable
@@ -49,7 +50,7 @@ def dh_forward_kinematics(q):
 def build_loop(V_WE_E, q0, X_WB=None, log=False):
     """add_arm + DifferentialIkDriver + EndEffectorPoseSensor, constant twist command."""
     builder = DiagramBuilder()
-    arm = add_arm(builder, time_step=DT, X_WB=X_WB, q0=q0)
+    arm = add_arm(builder, plant_config=MultibodyPlantConfig(time_step=DT), X_WB=X_WB, q0=q0)
     driver = builder.AddSystem(DifferentialIkDriver(
         make_control_plant(X_WB=X_WB), arm.ee_frame, DT, q0))
     builder.Connect(driver.get_desired_state_output_port(),
@@ -324,8 +325,8 @@ def test_sensor_and_add_arm_reject_bad_arguments(tmp_path):
         add_arm(DiagramBuilder(), base_frame="pedestal")
     with pytest.raises(ValueError, match="urdf: model file not found"):
         add_arm(DiagramBuilder(), urdf=tmp_path / "missing.urdf")
-    with pytest.raises(ValueError, match="time_step: must be finite and > 0"):
-        add_arm(DiagramBuilder(), time_step=0.0)
+    with pytest.raises(ValueError, match="plant_config.time_step: must be finite and > 0"):
+        add_arm(DiagramBuilder(), plant_config=MultibodyPlantConfig(time_step=0.0))
     with pytest.raises(ValueError, match="kp: gains must be ≥ 0"):
         add_arm(DiagramBuilder(), kp=-1.0)
     with pytest.raises(ValueError, match=r"kd: expected shape \(6,\)"):

@@ -3,14 +3,13 @@ Jacobians against finite differences, efficiency (Monte-Carlo errors against the
 bound), better than the linear solution on noisy data, robust start-up, input validation — and
 the benchmark's pure helpers."""
 
-from conftest import random_small_pose, tangent_error
+from tests.fixtures import manifold_filter, random_small_pose, tangent_error
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from handeye_drake.estimation import ml
-from handeye_drake.estimation.manifold import (ManifoldHandEyeFilter, inverse_tangent_jacobian,
-                                               retract_pose)
+from handeye_drake.estimation.se3 import inverse_tangent_jacobian, retract_pose
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
 from handeye_drake.estimation.solvers import solve_ax_xb
 from handeye_drake.estimation.validation import rotation_defect
@@ -231,10 +230,10 @@ def test_robust_initial_estimate_drops_wrong_motions_and_seeds_a_consistent_filt
     ref = ml.refine_ml([A[k] for k in good], [B[k] for k in good], X_CE, sr, st)
     np.testing.assert_allclose(r.X_CE, ref.X_CE, atol=1e-9)
     np.testing.assert_allclose(r.covariance, ref.covariance, rtol=1e-6)
-    f = ManifoldHandEyeFilter(r.X_CE, P0=r.covariance, rotation_sigma=sr, translation_sigma=st)
+    f = manifold_filter(r.X_CE, P0=r.covariance, rotation_sigma=sr, translation_sigma=st)
     A2, B2 = _motions(rng, X_CE, 20)
     for a, b in zip(_noisy(rng, A2, "so3", sr, st), B2):
-        f.update(a, b)
+        f.update_motion(a, b)
     assert f.num_rejected <= 1
     assert np.linalg.norm(_error(X_CE, f.X_CE)[:3]) < np.linalg.norm(
         _error(X_CE, r.X_CE)[:3]) + 3 * np.sqrt(np.trace(f.covariance[:3, :3]))
@@ -330,67 +329,3 @@ def test_robust_initial_estimate_rejects_bad_parameters():
     wrong = [make_transform(rotation_exp([2.0, 0.0, 0.0]), a[:3, 3]) for a in A]
     with pytest.raises(ValueError, match="rotation angles"):
         ml.robust_initial_estimate(wrong, B, 0.01, 0.01)
-
-
-# ---------------------------------------------------------------------------------------------
-# The benchmark's pure helpers (handeye_drake.benchmark).
-
-def test_benchmark_pose_chain_reproduces_the_motions_and_outliers_are_injected():
-    from handeye_drake.apps import accuracy as benchmark
-    rng = np.random.default_rng(14)
-    X_CE, A, B = benchmark.paper_motions(rng, 0.05, 0.1, 12)
-    assert len(A) == len(B) == 12
-    assert max(rotation_defect(a[:3, :3]) for a in A) > 1e-2  # paper noise: not orthonormal
-    A_rigid = [benchmark._project(a) for a in A]
-    X_BE, X_CT = benchmark.chain_poses(A_rigid, B)
-    for k in range(12):
-        np.testing.assert_allclose(X_CT[k] @ inverse(X_CT[k + 1]), A_rigid[k], atol=1e-10)
-        np.testing.assert_allclose(inverse(X_BE[k]) @ X_BE[k + 1], B[k], atol=1e-10)
-    X_CT_bad, idx = benchmark.inject_wrong_poses(X_CT, 0.25, rng)
-    assert len(idx) == 3 and 0 not in idx  # round(0.25 · 13)
-    changed = [k for k in range(13) if not np.allclose(X_CT_bad[k], X_CT[k])]
-    assert changed == sorted(idx.tolist())
-
-
-def test_benchmark_summary_statistics_hand_computed():
-    from handeye_drake.apps.accuracy import summarize
-    errors = [{"a": [1.0, 0.01], "ml": [1.0, 0.01]},
-              {"a": [2.0, 0.02], "ml": [0.5, 0.01]},
-              {"a": None, "ml": [0.5, 0.03]}]
-    s = summarize(errors, "ml")
-    assert s["a"]["runs"] == 2 and s["a"]["failures"] == 1
-    assert s["a"]["rotation_deg"]["median"] == pytest.approx(1.5)
-    assert s["a"]["rotation_deg"]["rms"] == pytest.approx(np.sqrt(2.5))
-    assert s["a"]["translation_pct"]["median"] == pytest.approx(1.5)
-    assert s["ml"]["rotation_deg"]["median"] == pytest.approx(0.5)
-    assert s["a"]["ratio_to_ml"]["rotation"] == pytest.approx(3.0)
-    assert s["a"]["ratio_to_ml"]["translation"] == pytest.approx(1.5)
-
-
-def test_benchmark_motion_noise_from_pose_noise():
-    from handeye_drake.apps.accuracy import motion_noise_from_pose_noise
-    X_CT = [make_transform(np.eye(3), [0.0, 0.0, 0.5])] * 3
-    sr, st = motion_noise_from_pose_noise(X_CT, 0.002, 0.0005)
-    assert sr == pytest.approx(np.sqrt(2) * 0.002)
-    assert st == pytest.approx(np.sqrt(2 * 0.0005**2 + 4 / 3 * 0.002**2 * 0.25))
-
-
-def test_benchmark_cli_parser_and_argument_checks():
-    import argparse
-
-    from handeye_drake.apps.accuracy import add_benchmark_parser, run_accuracy_benchmark
-    parser = argparse.ArgumentParser()
-    add_benchmark_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["benchmark", "accuracy", "--runs", "3", "--seed", "7",
-                              "--settings", "paper", "large", "--json", "out.json"])
-    assert (args.runs, args.seed, args.settings, args.json, args.workers) == (
-        3, 7, ["paper", "large"], "out.json", 2)
-    assert callable(args.func)
-    with pytest.raises(SystemExit):
-        parser.parse_args(["benchmark", "accuracy", "--settings", "nope"])
-    with pytest.raises(ValueError, match="runs"):
-        run_accuracy_benchmark(runs=-1)
-    with pytest.raises(ValueError, match="noise_levels"):
-        run_accuracy_benchmark(noise_levels=[0.0])
-    with pytest.raises(ValueError, match="settings"):
-        run_accuracy_benchmark(settings=["closed-loop"])

@@ -9,14 +9,15 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from handeye_drake import HandEyeKalmanFilter, orthonormalize
+from handeye_drake import orthonormalize
 from handeye_drake.estimation.linear_model import linear_system_matrices
 from handeye_drake.estimation.se3 import quat_wxyz, rotation_from_quat_wxyz
 from handeye_drake.apps.reproduce import EXPERIMENTS, FIGURES
-from handeye_drake.apps.reproduce.common import (batched_paper_filter, camera_motions,
-                                              horn_quaternions, linear_systems,
-                                              random_hand_eye, random_robot_motions, run_rng,
-                                              state_errors)
+from handeye_drake.apps.reproduce.common import (batched_paper_filter, horn_quaternions,
+                                                 linear_systems, run_rng, state_errors)
+from handeye_drake.estimation.synthetic import (camera_motions, random_hand_eye,
+                                                random_robot_motions)
+from tests.fixtures import paper_filter
 from handeye_drake.apps.reproduce.two_motion import stats as fig9_stats
 from handeye_drake.apps.reproduce.runner import (ALL_FIGURES, ProgressBar, add_reproduce_parser,
                                      reproduce, run_sweep, write_figures)
@@ -47,10 +48,10 @@ def test_batched_linear_systems_and_filter_match_the_reference_filter():
     x0 = np.concatenate([X0[:, :3, :3].reshape(n, 9), X0[:, :3, 3]], axis=1)
     states = batched_paper_filter(x0, A, B, 0.01 * np.eye(12))
     for i in range(n):
-        f = HandEyeKalmanFilter(X0[i], rotation_sigma=0.1, translation_sigma=0.1)
+        f = paper_filter(X0[i], rotation_sigma=0.1, translation_sigma=0.1)
         np.testing.assert_allclose(states[i, 0], f.state, atol=1e-12)
         for k in range(K):
-            f.update(A[i, k], B[i, k])
+            f.update_motion(A[i, k], B[i, k])
             np.testing.assert_allclose(states[i, k + 1], f.state, rtol=1e-9, atol=1e-9)
 
 

@@ -25,7 +25,7 @@ from handeye_drake.apps.cli import main
 from handeye_drake.recorded.example import camera_pose, generate_example
 
 DATA = Path(handeye_drake.__file__).parent / "data"
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def Rz(deg):
