@@ -23,9 +23,9 @@ from scipy.spatial.transform import Rotation
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from handeye_drake.estimation.configs import PaperFilter  # noqa: E402
+from handeye_drake.estimation.errors import rotation_error_deg  # noqa: E402
 from handeye_drake.estimation.kalman import HandEyeKalmanFilter  # noqa: E402
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp  # noqa: E402
-from handeye_drake.estimation.errors import rotation_error_deg  # noqa: E402
 
 #: Noise of the simulated camera motions (the paper's model) and the filter's assumed noise.
 ROTATION_SIGMA = 1e-3

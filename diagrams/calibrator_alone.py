@@ -10,11 +10,10 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from handeye_drake import (ManifoldFilter, PaperFilter, rotation_error_deg,
-                           translation_error_rel)
-from handeye_drake.simulation import build_calibrator_bench
+from handeye_drake import ManifoldFilter, PaperFilter, rotation_error_deg, translation_error_rel
 from handeye_drake.apps.pictures import render_diagram
 from handeye_drake.estimation.se3 import make_transform, rotation_from_rpy, vector_to_pose
+from handeye_drake.simulation import build_calibrator_bench
 
 if __name__ == "__main__":
     rng = np.random.default_rng(0)

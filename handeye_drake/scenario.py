@@ -32,7 +32,7 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 
 from .estimation import defaults
-from .estimation.configs import EstimatorConfig, ManifoldFilter, PaperFilter, TargetFilter
+from .estimation.configs import EstimatorConfig, ManifoldFilter, TargetFilter
 from .estimation.se3 import inverse
 from .estimation.validation import check_positive, check_rotation
 
@@ -252,6 +252,10 @@ class Scenario:
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 3 or not np.all(np.isfinite(pts)):
             raise ValueError("target.points: needs at least 3 finite [x, y, z] points, got "
                              f"shape {pts.shape}")
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if spread[1] < 1e-6 * max(spread[0], 1e-12):
+            raise ValueError("target.points: the points are collinear (or all equal); a 6-DOF "
+                             "visual servo needs at least 3 points not on one line")
         return self
 
     @property

@@ -22,18 +22,31 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.common import RandomDistribution, RandomGenerator
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import (ConstantVectorSource, LogVectorOutput, RandomSource,
-                                        ZeroOrderHold)
+from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    RandomSource,
+    ZeroOrderHold,
+)
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
 from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_pose
 from .scenario import Scenario, So3PoseNoise, transform_matrix
 from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
-from .systems.calibrator import STATUS_FILTERING, STATUS_INIT_FAILED, HandEyeCalibrator
+from .systems.calibrator import (
+    STATUS_COLLECTING,
+    STATUS_FILTERING,
+    STATUS_INIT_FAILED,
+    HandEyeCalibrator,
+)
 from .systems.camera import HandEyeCamera
 from .systems.servo import SelfCalibrationMotion, VisualServoController
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
+
+#: Final RMS feature error (px) above which a run's servo counts as not converged.
+SERVO_CONVERGED_PX = 5.0
+
 
 def intrinsics_of(scenario: Scenario) -> CameraIntrinsics:
     """The pinhole intrinsics of ``scenario.camera`` (Drake's CameraConfig + the axes angle)."""
@@ -331,6 +344,8 @@ class ScenarioResult:
     #: should not be trusted (empty when nothing is wrong).
     calibrator_mode: float = 0.0
     diagnostics: list = field(default_factory=list)
+    #: The run was stopped (Ctrl-C) before ``scenario.duration``.
+    interrupted: bool = False
 
     @property
     def real_time_factor(self) -> float:
@@ -341,14 +356,16 @@ class ScenarioResult:
         return int(self.calibrator_status[-1, 1])
 
     def summary(self) -> dict:
+        solved = self.calibrator_mode == STATUS_FILTERING
         return {
-            "two_motion_rotation_error_deg": self.initial_rotation_error_deg,
-            "two_motion_translation_error_rel": self.initial_translation_error_rel,
+            "two_motion_rotation_error_deg": self.initial_rotation_error_deg if solved else None,
+            "two_motion_translation_error_rel": (self.initial_translation_error_rel if solved
+                                                 else None),
             "final_rotation_error_deg": float(self.rotation_error_deg[-1]),
             "final_translation_error_rel": float(self.translation_error_rel[-1]),
             "final_feature_error_px": float(self.feature_error_px[-1]),
             "estimator": type(self.scenario.calibrator.estimator).__name__,
-            "two_motion_solution_found": self.calibrator_mode == STATUS_FILTERING,
+            "two_motion_solution_found": solved,
             "filter_updates": self.filter_updates,
             "rejected_measurements": int(self.calibrator_status[-1, 2]),
             "final_X_EC_rotation_std_deg": [float(v) for v in self.X_EC_std[-1, :3]],
@@ -357,27 +374,44 @@ class ScenarioResult:
             "wall_time_s": self.wall_time,
             "real_time_factor": self.real_time_factor,
             "diagnostics": list(self.diagnostics),
+            "interrupted": self.interrupted,
         }
 
 
 def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
-                 meshcat=None) -> ScenarioResult:
-    """Builds and simulates ``scenario`` (noise seeded by ``scenario.seed``)."""
+                 meshcat=None, progress=None) -> ScenarioResult:
+    """Builds and simulates ``scenario`` (noise seeded by ``scenario.seed``).
+
+    ``progress``: optional callable receiving the simulated time (s) as the run advances. A
+    ``KeyboardInterrupt`` (Ctrl-C) stops the run: the result then holds what was simulated so far
+    and ``interrupted`` is True.
+    """
     loop = build_diagram(scenario, feedback=feedback, X_CE_fixed=X_CE_fixed, meshcat=meshcat)
     simulator = Simulator(loop.diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
     loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+    if progress is not None:
+        def monitor(root_context):
+            progress(root_context.get_time())
+            return EventStatus.Succeeded()
+        simulator.set_monitor(monitor)
     if meshcat is not None:
         meshcat.StartRecording()
     start = time.perf_counter()
-    simulator.Initialize()
-    simulator.AdvanceTo(scenario.duration)
+    interrupted = False
+    try:
+        simulator.Initialize()
+        simulator.AdvanceTo(scenario.duration)
+    except KeyboardInterrupt:
+        interrupted = True
     wall = time.perf_counter() - start
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
-    return _collect_result(scenario, loop, context, wall)
+    result = _collect_result(scenario, loop, context, wall)
+    result.interrupted = interrupted
+    return result
 
 
 def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) -> ScenarioResult:
@@ -401,6 +435,12 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         diagnostics.insert(0, "the two-motion solution failed (the self-calibration motions do "
                               "not determine X: too small, or about parallel axes); the "
                               "estimator started from the guess X_EC_guess")
+    elif mode == STATUS_COLLECTING:
+        diagnostics.insert(0, "the self-calibration motions did not finish: no estimate yet")
+    final_error = float(data["feature_error"][-1, 0])
+    if final_error > SERVO_CONVERGED_PX:
+        diagnostics.append(f"the servo did not converge: final feature error {final_error:.3g} px "
+                           f"(> {SERVO_CONVERGED_PX:g} px)")
     return ScenarioResult(
         scenario=scenario, times=times, X_EC_true=X_EC_true, X_EC_estimates=X_EC_est,
         X_EC_initial=X_EC_initial,

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from handeye_drake.estimation.configs import ManifoldFilter, PaperFilter, TargetFilter
-from handeye_drake.scenario import (CoefficientPoseNoise, Scenario, dump_scenario,
-                                    load_scenario)
+from handeye_drake.scenario import CoefficientPoseNoise, Scenario, dump_scenario, load_scenario
 from handeye_drake.simulation import build_diagram, camera_pose_on_hand
 
 

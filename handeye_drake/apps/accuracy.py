@@ -5,7 +5,7 @@
 
 Settings (each run draws its data once; every method sees exactly that data):
 
-1. ``paper-σ`` — PAPER §8's small motions: robot motions B with roll-pitch-yaw ~ N(0, (2π/100)²)
+1. ``paper-σ`` — docs/method.md §8's small motions: robot motions B with roll-pitch-yaw ~ N(0, (2π/100)²)
    and translation ~ N(0, 1) per coordinate; true X = X_CE with roll-pitch-yaw uniform in
    [0, 2π) and translation coordinates ~ N(0, 100²); 100 motions; the camera measures the motion
    A with the paper's noise: N(0, σ²) on each coefficient of R_A (σ ∈ ``--noise-levels``) and
@@ -23,7 +23,7 @@ Settings (each run draws its data once; every method sees exactly that data):
 
 Methods (the ``--json`` names):
 
-- ``paper_kf``: PAPER §4–§5's linear Kalman filter (``HandEyeKalmanFilter``, diagonal G2 tuned to
+- ``paper_kf``: docs/method.md §4–§5's linear Kalman filter (``HandEyeKalmanFilter``, diagonal G2 tuned to
   the true noise), initialized with Daniilidis on the first two motions, P0 = I12 as the paper.
 - ``manifold``: ``ManifoldHandEyeFilter`` with the same two-motion initialization (noise model
   "paper" in settings 1–2, P0 = diag(1 rad², 100²), the prior spread of X; NIS gate 0.999).
@@ -62,14 +62,16 @@ import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
-from ..estimation.errors import rotation_error_deg, translation_error_rel
 from ..estimation.configs import ManifoldFilter, PaperFilter, TargetFilter
-from ..estimation.defaults import (CAMERA_ROTATION_SIGMA, CAMERA_TRANSLATION_SIGMA,
-                                   ROTATION_TOLERANCE)
+from ..estimation.defaults import (
+    CAMERA_ROTATION_SIGMA,
+    CAMERA_TRANSLATION_SIGMA,
+    ROTATION_TOLERANCE,
+)
+from ..estimation.errors import rotation_error_deg, translation_error_rel
 from ..estimation.kalman import HandEyeKalmanFilter
 from ..estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
 from ..estimation.ml import refine_ml, refine_ml_poses
@@ -79,6 +81,7 @@ from ..estimation.solvers import solve_ax_xb
 from ..estimation.startup import two_motion_estimate
 from ..estimation.synthetic import chain_poses, inject_wrong_poses, orbit_poses, paper_motions
 from ..estimation.validation import rotation_defect
+from .outputs import check_output_file
 
 PAPER_NOISE_LEVELS = (0.01, 0.05, 0.1)
 PAPER_TRANSLATION_SIGMA = 0.1
@@ -299,8 +302,8 @@ def _pose_filters(X_BE, X_CT, X_CE0, P0, rotation_sigma, translation_sigma, gate
 
 def _closed_loop_task(task) -> dict:
     seed, use_cv = task
-    from ..simulation import run_scenario
     from ..scenario import load_scenario
+    from ..simulation import run_scenario
 
     scenario = load_scenario()
     scenario.seed = int(seed)
@@ -510,7 +513,7 @@ def run_accuracy_benchmark(runs: int = 20, closed_loop_runs: int = 4, seed: int 
     for (kind, sigma, _, _), out in zip(tasks, outputs):
         if kind == "paper":
             if "paper" in settings:
-                add(f"paper-{sigma:g}", f"PAPER §8 small motions, {num_motions} motions, paper "
+                add(f"paper-{sigma:g}", f"docs/method.md §8 small motions, {num_motions} motions, paper "
                     f"noise σ_R = {sigma:g} (coefficients), σ_t = {PAPER_TRANSLATION_SIGMA:g}",
                     "X_CE", out["clean"], out["clean_info"])
             if "outliers" in out:
@@ -560,31 +563,30 @@ def format_report(report: dict) -> str:
 
 
 def _accuracy(args) -> int:
+    json_path = check_output_file(args.json, "--json", args.force) if args.json else None
     report = run_accuracy_benchmark(
         runs=args.runs, closed_loop_runs=args.closed_loop_runs, seed=args.seed,
         workers=args.workers, noise_levels=args.noise_levels, settings=args.settings,
         num_motions=args.motions)
     report["command"] = " ".join(["handeye-drake"] + sys.argv[1:])
     print(format_report(report))
-    if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {path}")
+    if json_path is not None:
+        json_path.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"wrote {json_path}")
     return 0
 
 
-def add_benchmark_parser(subparsers) -> argparse.ArgumentParser:
-    """Adds ``benchmark accuracy`` to an argparse sub-parser collection (the CLI's)."""
-    bench = subparsers.add_parser("benchmark", help="accuracy benchmarks of the estimators")
-    sub = bench.add_subparsers(dest="benchmark_command", required=True)
-    acc = sub.add_parser(
+def add_parser(benchmark_subparsers) -> argparse.ArgumentParser:
+    """Adds ``accuracy`` to the ``benchmark`` command's sub-parsers (the CLI's)."""
+    acc = benchmark_subparsers.add_parser(
         "accuracy", help="every estimator (paper's filter, ours, OpenCV's five, ML reference) "
-        "on the same data: small motions (PAPER §8), with outliers, the closed loop, large "
+        "on the same data: small motions (docs/method.md §8), with outliers, the closed loop, large "
         "motions", description="Runs the paper's filter, our filters, OpenCV's five methods and "
         "the maximum-likelihood reference on the same seeded data and prints median / RMS "
         "errors and their ratio to the ML reference, then checks the accuracy targets.")
-    acc.add_argument("--json", metavar="FILE", help="also write the results to this JSON file")
+    acc.add_argument("--json", metavar="FILE", help="also write the results to this JSON file "
+                     "(checked before the run; an existing file needs --force)")
+    acc.add_argument("--force", action="store_true", help="overwrite an existing --json file")
     acc.add_argument("--runs", type=int, default=20, metavar="N",
                      help="random runs per noise level and for the large-motion setting "
                      "(default 20)")
@@ -601,4 +603,4 @@ def add_benchmark_parser(subparsers) -> argparse.ArgumentParser:
     acc.add_argument("--settings", nargs="+", choices=SETTINGS, default=list(SETTINGS),
                      help="which settings to run (default all)")
     acc.set_defaults(func=_accuracy)
-    return bench
+    return acc

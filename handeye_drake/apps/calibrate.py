@@ -27,7 +27,6 @@ import argparse
 import hashlib
 import json
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,11 +37,23 @@ from ..estimation.configs import PaperFilter
 from ..estimation.kalman import HandEyeKalmanFilter
 from ..estimation.se3 import inverse, quat_wxyz, rpy
 from ..estimation.solvers import METHODS, solve_ax_xb
-from ..recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset, align_streams,
-                    estimate_time_offset)
+from ..recorded.align import (
+    AlignedSamples,
+    TimeOffsetEstimate,
+    UnobservableTimeOffset,
+    align_streams,
+    estimate_time_offset,
+)
 from ..recorded.formats import FORMATS, MAX_TRANSLATION, PoseStream, read_poses
-from ..recorded.selection import (RobustFit, bootstrap_covariance, consistency_hint, pair_residuals,
-                        residual_summary, robust_hand_eye)
+from ..recorded.selection import (
+    RobustFit,
+    bootstrap_covariance,
+    consistency_hint,
+    pair_residuals,
+    residual_summary,
+    robust_hand_eye,
+)
+from .outputs import OutputDir, prepare_output_dir
 
 DEFAULT_METHOD = "daniilidis"
 BOOTSTRAP_RESAMPLES = 50
@@ -478,7 +489,7 @@ def plot_online(result: CalibrationResult, path) -> Path:
     init = (_rot_diff(o.X_EC_init, result.X_EC), _trans_diff(o.X_EC_init, result.X_EC))
     xlabel = "camera time (s)" if result.aligned.camera_times is not None else "sample index"
     for ax, y, y0, label in ((axes[0], o.rotation_diff_deg, init[0], "rotation (deg)"),
-                             (axes[1], o.translation_diff, init[1], "translation (length)")):
+                             (axes[1], o.translation_diff, init[1], "translation (m)")):
         ax.semilogy(o.times, np.maximum(y, 1e-9), label="HandEyeKalmanFilter")
         ax.axhline(max(y0, 1e-9), color="C3", ls="--", lw=1,
                    label=f"two-motion {result.method} start")
@@ -620,19 +631,21 @@ def calibrate_files(robot_path, camera_path, fmt: str | None = None,
     return result
 
 
-def write_outputs(result: CalibrationResult, out_dir) -> list[Path]:
-    """Writes ``calibration.json`` (and ``online_convergence.png`` when replayed) in out_dir."""
-    out = Path(out_dir)
+def write_outputs(result: CalibrationResult, out_dir, force: bool = False) -> list[Path]:
+    """Writes ``calibration.json`` (and ``online_convergence.png`` when replayed) in out_dir
+    (a directory or an ``outputs.OutputDir`` already claimed; see ``apps.outputs``)."""
+    out = out_dir if isinstance(out_dir, OutputDir) else prepare_output_dir(out_dir, "calibrate",
+                                                                             force)
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        path = out / "calibration.json"
+        path = out.path("calibration.json")
         path.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
         written = [path]
         if result.online is not None and len(result.online.times):
-            written.append(plot_online(result, out / "online_convergence.png"))
+            written.append(plot_online(result, out.path("online_convergence.png")))
     except OSError as e:
-        raise ValueError(f"--out {out_dir}: cannot write the results ({e.strerror or e})") \
+        raise ValueError(f"--out {out.root}: cannot write the results ({e.strerror or e})") \
             from None
+    out.finish(written)
     return written
 
 
@@ -649,7 +662,7 @@ def _time_offset_arg(text: str):
     return v
 
 
-def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> argparse.ArgumentParser:
     """Adds the ``calibrate`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser(
         "calibrate", help="hand-eye calibration from recorded robot and camera poses",
@@ -667,7 +680,12 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--online-step", type=float, default=10.0, metavar="DEG",
                    help="--online feeds the filter the motion between keyframes rotating ≥ DEG "
                         "apart (default 10); 0 feeds every consecutive (small) motion")
-    p.add_argument("--out", default="out/calibrate", metavar="DIR", help="output directory")
+    p.add_argument("--out", default="out/calibrate", metavar="DIR",
+                   help="output directory (default out/calibrate); an existing one must be "
+                        "empty or hold this command's earlier output")
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that is not this command's output "
+                        "(never overwriting files the tool did not write)")
     p.add_argument("--camera-pose-is-camera-in-target", action="store_true",
                    help="the camera file holds X_TC (camera in target) instead of X_CT")
     p.add_argument("--time-offset", type=_time_offset_arg, default=None,
@@ -701,6 +719,7 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
 
 def run_calibrate_command(args) -> int:
     """Runs ``calibrate`` from parsed arguments; raises ValueError on bad input."""
+    out = prepare_output_dir(args.out, "calibrate", args.force)
     result = calibrate_files(
         args.robot, args.camera, args.format, args.camera_pose_is_camera_in_target,
         args.translation_scale, args.max_translation, method=args.method,
@@ -709,7 +728,7 @@ def run_calibrate_command(args) -> int:
         holdout_fraction=args.holdout, std_method=args.std,
         bootstrap_resamples=args.bootstrap, seed=args.seed,
         online=args.online, online_step_deg=args.online_step)
-    written = write_outputs(result, args.out)
+    written = write_outputs(result, out)
     print(result.table())
     print("wrote: " + ", ".join(str(p) for p in written))
     return 0

@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..systems.servo import STATUS_TOO_FEW_VISIBLE  # noqa: E402
+
 
 def _servo_start_line(ax, result):
     if np.isfinite(result.servo_start_time):
@@ -17,8 +19,11 @@ def _servo_start_line(ax, result):
 
 
 def plot_feature_error(result, path) -> Path:
+    """RMS feature error over time; samples without a usable image (the first sample, targets
+    out of view) are left out rather than drawn as a dive to zero."""
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    ax.semilogy(result.times, np.maximum(result.feature_error_px, 1e-3))
+    seen = result.servo_status != STATUS_TOO_FEW_VISIBLE
+    ax.semilogy(result.times[seen], result.feature_error_px[seen])
     _servo_start_line(ax, result)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("RMS feature error (px)")
@@ -32,7 +37,7 @@ def plot_feature_error(result, path) -> Path:
 
 
 def plot_image_trajectories(result, path) -> Path:
-    c = result.scenario.camera
+    c = result.scenario.camera.sensor
     fig, ax = plt.subplots(figsize=(6.4, 4.8 * 6.4 / 6.4))
     uv = result.features.reshape(len(result.times), -1, 2)
     s_star = result.desired_features.reshape(-1, 2)

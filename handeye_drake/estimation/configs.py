@@ -51,15 +51,20 @@ def _sigma(value, name: str, allow_zero: bool) -> float:
     if value is None:
         raise ValueError(f"{name}: not set (None means 'from the camera model', which only a "
                          "scenario can fill in); give a value")
-    return _number(value, name, 0.0, lo_open=not allow_zero)
+    return _number(value, name, 0.0, lo_open=not allow_zero, hi=defaults.MAX_SIGMA)
 
 
 def _variances(values, name: str, n: int, allow_empty: bool) -> list[float]:
+    try:
+        values = list(values)
+    except TypeError:
+        raise ValueError(f"{name}: needs a list of {n} variances, got {values!r}") from None
     if allow_empty and len(values) == 0:
         return []
-    if isinstance(values, (str, bytes)) or len(values) != n:
+    if len(values) != n:
         raise ValueError(f"{name}: needs {n} variances, got {values!r}")
-    return [_number(v, f"{name}[{i}]", 0.0) for i, v in enumerate(values)]
+    return [_number(v, f"{name}[{i}]", 0.0, hi=defaults.MAX_SIGMA**2)
+            for i, v in enumerate(values)]
 
 
 def _probability(value, name: str) -> float | None:

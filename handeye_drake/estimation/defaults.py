@@ -14,8 +14,14 @@ import math
 #: matrix.
 ROTATION_TOLERANCE = 1e-5
 
-#: Largest accepted positive scalar (sigmas, periods, gains): its square must stay finite.
+#: Largest accepted positive scalar (periods, gains): its square must stay finite.
 MAX_MAGNITUDE = 1e150
+#: Largest accepted entry of a pose (m or the data's length unit): 100 000 km. Beyond it the
+#: data is garbage or in the wrong unit, and products of poses would overflow.
+MAX_POSE_MAGNITUDE = 1e8
+#: Largest accepted noise standard deviation (rad, m, px): beyond it nothing is measured, and the
+#: filters' variances (σ⁴ in products) would overflow.
+MAX_SIGMA = 1e6
 
 #: Smallest rotation angle (rad) of a motion the classical solvers accept: catches (near-)pure
 #: translations, whose rotation axis is undefined.

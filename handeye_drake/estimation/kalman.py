@@ -22,8 +22,14 @@ from .estimator import EstimatorBase, VectorLayout
 from .linear_model import linear_system_matrices, state_from_transform
 from .manifold import gate_threshold
 from .orthonormalize import orthonormalize_unchecked
-from .se3 import inverse, make_transform, pose_to_vector, rotation_angle, rotation_log, \
-    vector_to_pose
+from .se3 import (
+    inverse,
+    make_transform,
+    pose_to_vector,
+    rotation_angle,
+    rotation_log,
+    vector_to_pose,
+)
 from .validation import as_transform, check_covariance, check_positive
 
 #: Values of ``PaperFilter.noise_covariance``.

@@ -1,4 +1,4 @@
-"""Relative motions and the paper's linear model of AX = XB (PAPER §2–§3).
+"""Relative motions and the paper's linear model of AX = XB (docs/method.md §2–§3).
 
 Frames: the robot reports ``X_BE`` (end-effector E in robot base B, OpenCV's "gripper→base"), the
 camera measures ``X_CT`` (target T in camera C, OpenCV's "target→camera"). Between samples k−1 and
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .se3 import inverse
 from .validation import as_transform, as_transform_list, check_same_length
 
 
@@ -70,7 +69,7 @@ def linear_system_matrices(A: np.ndarray, B: np.ndarray):
 
 
 def linear_system(A, B):
-    """The paper's linear measurement model C x = y of one motion pair (PAPER §3).
+    """The paper's linear measurement model C x = y of one motion pair (docs/method.md §3).
 
     x = [i; j; k; t_X] stacks the rows of R_X (row-major vec) and t_X, for X = X_CE.
 

@@ -29,8 +29,16 @@ from . import defaults
 from .configs import ManifoldFilter, TargetFilter
 from .estimator import EstimatorBase, VectorLayout, rotation_vector_between
 from .orthonormalize import orthonormalize_unchecked
-from .se3 import (inverse, make_transform, pose_to_vector, retract_pose, rotation_angle,
-                  rotation_log, skew, vector_to_pose)
+from .se3 import (
+    inverse,
+    make_transform,
+    pose_to_vector,
+    retract_pose,
+    rotation_angle,
+    rotation_log,
+    skew,
+    vector_to_pose,
+)
 from .validation import as_transform, check_covariance
 
 

@@ -1,4 +1,4 @@
-"""Maximum-likelihood batch reference for the hand-eye transform (beyond PAPER §9).
+"""Maximum-likelihood batch reference for the hand-eye transform (beyond docs/method.md §9).
 
 Given every measurement at once, the best any estimator can do under a known sensor noise model
 is the maximum-likelihood (ML) estimate: the minimizer of the sum of squared residuals *whitened
@@ -13,14 +13,14 @@ classical closed-form methods are measured against:
 
 Two forms:
 
-- ``refine_ml``: motion pairs (A_k, B_k) with A_k X = X B_k (PAPER §2), unknown X = X_CE. The
+- ``refine_ml``: motion pairs (A_k, B_k) with A_k X = X B_k (docs/method.md §2), unknown X = X_CE. The
   noise is on the measured camera motion A (the paper's simulations):
 
   * ``"so3"``: R_A = exp(n_r) R̃_A with n_r ~ N(0, σ_r² I3) (rad), t_A = t̃_A + n_t. Residual
     [log(R_A R̂_Aᵀ)/σ_r; (t_A − t̂_A)/σ_t]. (Exact ML up to the Jacobian of the exponential map
     in the density of R_A, a factor 1 + O(σ_r²).)
   * ``"paper"``: R_A = R̃_A + Δ, Δ's 9 coefficients i.i.d. N(0, σ_r²), t_A = t̃_A + n_t
-    (PAPER §5). Residual [vec_row(R_A − R̂_A)/σ_r; (t_A − t̂_A)/σ_t] on the raw, non-orthonormal
+    (docs/method.md §5). Residual [vec_row(R_A − R̂_A)/σ_r; (t_A − t̂_A)/σ_t] on the raw, non-orthonormal
     measured R_A — the exact Gaussian ML residual of that model.
 
   with the prediction R̂_A = R_X R_B R_Xᵀ, t̂_A = R_X t_B + t_X − R̂_A t_X (exact given X and B).

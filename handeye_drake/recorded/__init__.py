@@ -12,12 +12,33 @@ library under ``handeye_drake.apps.calibrate``).
 Nothing here imports Drake.
 """
 
-from .align import (AlignedSamples, PoseInterpolator, TimeOffsetEstimate, UnobservableTimeOffset,
-                    align_streams, estimate_time_offset, interpolate_poses)
-from .formats import (FORMATS, PoseStream, parse_csv_matrix, parse_opencv_yaml, parse_poses,
-                      parse_tum, pose_stream, read_poses)
-from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs, pair_residuals,
-                        robust_hand_eye)
+from .align import (
+                    AlignedSamples,
+                    PoseInterpolator,
+                    TimeOffsetEstimate,
+                    UnobservableTimeOffset,
+                    align_streams,
+                    estimate_time_offset,
+                    interpolate_poses,
+)
+from .formats import (
+                    FORMATS,
+                    PoseStream,
+                    parse_csv_matrix,
+                    parse_opencv_yaml,
+                    parse_poses,
+                    parse_tum,
+                    pose_stream,
+                    read_poses,
+)
+from .selection import (
+                    InconsistentMotions,
+                    MotionPairs,
+                    RobustFit,
+                    form_pairs,
+                    pair_residuals,
+                    robust_hand_eye,
+)
 
 __all__ = [
     "FORMATS",

@@ -7,8 +7,14 @@
     motion_source.py PaperMotionSource
 """
 
-from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor, add_arm,
-                  make_control_plant)
+from .arm import (
+                  UR5E_HOME_Q,
+                  UR5E_URDF,
+                  DifferentialIkDriver,
+                  EndEffectorPoseSensor,
+                  add_arm,
+                  make_control_plant,
+)
 from .calibrator import HandEyeCalibrator
 from .camera import HandEyeCamera
 from .motion_source import PaperMotionSource

@@ -131,9 +131,9 @@ class HandEyeCalibrator(LeafSystem):
             prerequisites_of_calc=estimate)
         estimate = {self._estimator_cache.ticket()}
         self._X_CE_port = self.DeclareVectorOutputPort(
-            "X_CE_estimate", 12, self._CalcXCE, prerequisites_of_calc=estimate)
+            "X_CE_estimate", 12, self._CalcX_CE, prerequisites_of_calc=estimate)
         self._X_EC_port = self.DeclareVectorOutputPort(
-            "X_EC_estimate", 12, self._CalcXEC, prerequisites_of_calc=estimate)
+            "X_EC_estimate", 12, self._CalcX_EC, prerequisites_of_calc=estimate)
         self._two_motion_port = self.DeclareVectorOutputPort(
             "X_EC_two_motion", 12, self._CalcTwoMotion,
             prerequisites_of_calc={self.discrete_state_ticket(self._two_motion_index)})
@@ -267,10 +267,10 @@ class HandEyeCalibrator(LeafSystem):
         discrete_state.set_value(self._mode_index, [mode])
 
     # ------------------------------------------------------------------------------ outputs
-    def _CalcXCE(self, context, output: BasicVector):
+    def _CalcX_CE(self, context, output: BasicVector):
         output.SetFromVector(pose_to_vector(self._estimator_cache.Eval(context).X_CE))
 
-    def _CalcXEC(self, context, output: BasicVector):
+    def _CalcX_EC(self, context, output: BasicVector):
         output.SetFromVector(pose_to_vector(self._estimator_cache.Eval(context).X_EC))
 
     def _CalcTwoMotion(self, context, output: BasicVector):

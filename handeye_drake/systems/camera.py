@@ -10,20 +10,20 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import LeafSystem
 
-from handeye_drake.estimation.se3 import inverse, pose_to_vector, vector_to_pose
-from handeye_drake.estimation.validation import (
+from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from ..estimation.validation import (
     ROTATION_TOLERANCE,
     as_matrix,
     as_transform,
     check_positive,
     rotation_defect,
 )
-from handeye_drake.vision.camera_model import (
+from ..vision.camera_model import (
     MIN_DEPTH,
     POSE_NOISE_MODELS,
     CameraIntrinsics,
-    as_points,
     apply_pose_noise,
+    as_points,
     project_points,
     target_visibility,
 )
@@ -39,7 +39,7 @@ class HandEyeCamera(LeafSystem):
     * the noisy pixels of the points (noise N(0, pixel_sigma²) per coordinate, on visible points),
     * which points are visible (in front of the camera and inside the image),
     * a noisy measurement of the target pose X_CT (what a pose-from-image estimator would return;
-      the camera motion A of PAPER.md §2 is built from two of them),
+      the camera motion A of docs/method.md §2 is built from two of them),
     * the true camera pose X_WC (for logging and visualization).
 
     Invisible points are reported through ``visible``; their ``features`` entries hold the

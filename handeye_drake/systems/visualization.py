@@ -4,8 +4,14 @@ camera frames (X_WC and X_WE · X_EC_estimate), recorded into a self-contained H
 from __future__ import annotations
 
 import numpy as np
-from pydrake.geometry import (Cylinder, Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Rgba,
-                              Sphere)
+from pydrake.geometry import (
+    Cylinder,
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Rgba,
+    Sphere,
+)
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
@@ -40,7 +46,7 @@ class CameraFramesVisualizer(LeafSystem):
         self._X_EC_port = self.DeclareVectorInputPort("X_EC_estimate", 12)
         _add_triad(meshcat, "camera/true", length=0.08)
         _add_triad(meshcat, "camera/estimated", length=0.08, radius=0.002, opacity=0.5)
-        self.DeclarePeriodicPublishEvent(period, 0.0, self._Publish)
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._PublishFrames)
 
     def get_X_WC_input_port(self):
         return self._X_WC_port
@@ -51,7 +57,7 @@ class CameraFramesVisualizer(LeafSystem):
     def get_X_EC_input_port(self):
         return self._X_EC_port
 
-    def _Publish(self, context):
+    def _PublishFrames(self, context):
         t = context.get_time()
         X_WC = vector_to_pose(self._X_WC_port.Eval(context))
         X_WC_est = vector_to_pose(self._X_WE_port.Eval(context)) @ vector_to_pose(

@@ -1,6 +1,6 @@
 """Pinhole camera model, point-feature interaction matrices and the IBVS law (numpy only).
 
-Conventions (see the project README and PAPER.md §7):
+Conventions (see the project README and docs/method.md §7):
 
 * Camera frame C: origin at the optical centre, +z along the optical axis (points in front of the
   camera have z > 0), +x towards increasing u (image columns), +y towards increasing v (rows).
@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from handeye_drake.estimation.se3 import inverse, rotation_exp, twist_transform
-from handeye_drake.estimation.validation import as_matrix, as_transform, check_positive
+from ..estimation.se3 import inverse, rotation_exp, twist_transform
+from ..estimation.validation import as_matrix, as_transform, check_positive
 
 #: Points with depth Z ≤ MIN_DEPTH (in the length unit of the poses) are not projected: they are
 #: behind the camera or so close to its centre that x = X/Z would blow up.
@@ -251,7 +251,7 @@ def apply_pose_noise(X_CT, noise, model: str, rotation_sigma: float,
                      translation_sigma: float) -> np.ndarray:
     """Noisy measurement of the target pose X_CT from 12 standard-normal samples ``noise``.
 
-    * ``"paper"`` (PAPER.md §5): R += rotation_sigma · reshape(noise[:9], 3×3) (row-major),
+    * ``"paper"`` (docs/method.md §5): R += rotation_sigma · reshape(noise[:9], 3×3) (row-major),
       additive on each coefficient and deliberately NOT re-orthonormalized.
     * ``"so3"``: R ← exp(rotation_sigma · noise[:3]) · R, a rotation-vector perturbation (radians,
       expressed in C), so R stays a rotation.

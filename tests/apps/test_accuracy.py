@@ -30,11 +30,10 @@ def test_benchmark_motion_noise_from_pose_noise():
 
 
 def test_benchmark_cli_parser_and_argument_checks():
-    import argparse
 
-    from handeye_drake.apps.accuracy import add_benchmark_parser, run_accuracy_benchmark
-    parser = argparse.ArgumentParser()
-    add_benchmark_parser(parser.add_subparsers(dest="command", required=True))
+    from handeye_drake.apps.accuracy import run_accuracy_benchmark
+    from handeye_drake.apps.cli import make_parser
+    parser = make_parser()
     args = parser.parse_args(["benchmark", "accuracy", "--runs", "3", "--seed", "7",
                               "--settings", "paper", "large", "--json", "out.json"])
     assert (args.runs, args.seed, args.settings, args.json, args.workers) == (

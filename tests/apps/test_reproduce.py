@@ -10,17 +10,26 @@ import numpy as np
 import pytest
 
 from handeye_drake import orthonormalize
+from handeye_drake.apps.reproduce import EXPERIMENTS, FIGURES
+from handeye_drake.apps.reproduce.common import (
+    batched_paper_filter,
+    horn_quaternions,
+    linear_systems,
+    run_rng,
+    state_errors,
+)
+from handeye_drake.apps.reproduce.runner import (
+    ALL_FIGURES,
+    add_parser,
+    reproduce,
+    run_sweep,
+    write_figures,
+)
+from handeye_drake.apps.reproduce.two_motion import stats as fig9_stats
 from handeye_drake.estimation.linear_model import linear_system_matrices
 from handeye_drake.estimation.se3 import quat_wxyz, rotation_from_quat_wxyz
-from handeye_drake.apps.reproduce import EXPERIMENTS, FIGURES
-from handeye_drake.apps.reproduce.common import (batched_paper_filter, horn_quaternions,
-                                                 linear_systems, run_rng, state_errors)
-from handeye_drake.estimation.synthetic import (camera_motions, random_hand_eye,
-                                                random_robot_motions)
+from handeye_drake.estimation.synthetic import camera_motions, random_hand_eye, random_robot_motions
 from tests.fixtures import paper_filter
-from handeye_drake.apps.reproduce.two_motion import stats as fig9_stats
-from handeye_drake.apps.reproduce.runner import (ALL_FIGURES, ProgressBar, add_reproduce_parser,
-                                     reproduce, run_sweep, write_figures)
 
 
 def _final(result, metric):
@@ -218,12 +227,13 @@ def test_process_pool_gives_the_serial_result():
 
 def test_reproduce_writes_pngs_csvs_and_summary(tmp_path, capsys):
     parser = argparse.ArgumentParser()
-    add_reproduce_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["reproduce", "fig2", "fig7", "--runs", "3", "--motions", "5",
                               "--workers", "1", "--out", str(tmp_path), "--seed", "4"])
     assert args.func(args) == 0
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == ["fig2.csv", "fig2.png", "fig7.csv", "fig7.png", "summary.md"]
+    assert names == [".handeye-drake-output.json", "fig2.csv", "fig2.png", "fig7.csv",
+                     "fig7.png", "summary.md"]
     summary = (tmp_path / "summary.md").read_text()
     assert "### Fig. 2" in summary and "### Fig. 7" in summary and "Fig. 8" not in summary
     assert "| 5 % |" in summary
@@ -248,7 +258,7 @@ def test_bad_arguments_raise(tmp_path):
     with pytest.raises(ValueError, match="workers: expected a positive integer"):
         reproduce(["fig2"], runs=2, workers=0, out=tmp_path)
     parser = argparse.ArgumentParser()
-    add_reproduce_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     assert parser.parse_args(["reproduce"]).figures == ["all"]
     for bad in (["reproduce", "fig1"], ["reproduce", "--runs", "0"],
                 ["reproduce", "--seed", "x"]):
@@ -256,14 +266,33 @@ def test_bad_arguments_raise(tmp_path):
             parser.parse_args(bad)
 
 
-def test_progress_bar_lines_when_not_a_terminal():
-    import io
-    stream = io.StringIO()
-    bar = ProgressBar(20, "fig9", stream=stream, width=10)
-    for _ in range(20):
-        bar.update()
-    bar.close()
-    lines = stream.getvalue().splitlines()
-    assert lines[0].startswith("fig9 [..........] 0/20 tasks")
-    assert lines[-1].startswith("fig9 [##########] 20/20 tasks")
-    assert len(lines) == 11  # one per 10 %
+def test_reproduce_output_directory_policy(tmp_path, capsys):
+    """Re-running into its own output replaces it and removes the files the new run does not
+    write (no fig2 beside fig5); another non-empty directory is refused, and --force never
+    touches a file the tool did not write."""
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command"))
+    out = tmp_path / "r"
+
+    def run(*extra):
+        args = parser.parse_args(["reproduce", *extra, "--runs", "3", "--workers", "1",
+                                  "--out", str(out), "--no-progress"])
+        return args.func(args)
+    assert run("fig2") == 0
+    assert run("fig9") == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [".handeye-drake-output.json", "fig9.csv", "fig9.png", "summary.md"]
+    assert "Fig. 2" not in (out / "summary.md").read_text()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    with pytest.raises(ValueError, match="--out .*not empty and is not an output directory"):
+        reproduce(["fig9"], runs=3, out=mine, progress=False)
+    (mine / "summary.md").write_text("mine too")
+    with pytest.raises(ValueError, match="summary.md exists and was not written by"):
+        reproduce(["fig9"], runs=3, out=mine, progress=False, force=True)
+    assert (mine / "notes.txt").read_text() == "keep me"
+    assert (mine / "summary.md").read_text() == "mine too"
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ValueError, match="--out .*exists and is not a directory"):
+        reproduce(["fig9"], runs=3, out=tmp_path / "file", progress=False)

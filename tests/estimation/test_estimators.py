@@ -11,10 +11,19 @@ from handeye_drake.estimation.configs import ManifoldFilter, PaperFilter, Target
 from handeye_drake.estimation.kalman import HandEyeKalmanFilter
 from handeye_drake.estimation.linear_model import linear_system
 from handeye_drake.estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
-from handeye_drake.estimation.se3 import (inverse, make_transform, retract_pose, rotation_exp,
-                                          rotation_log)
-from handeye_drake.estimation.startup import (estimator_type, make_estimator, start_estimator,
-                                              two_motion_estimate)
+from handeye_drake.estimation.se3 import (
+    inverse,
+    make_transform,
+    retract_pose,
+    rotation_exp,
+    rotation_log,
+)
+from handeye_drake.estimation.startup import (
+    estimator_type,
+    make_estimator,
+    start_estimator,
+    two_motion_estimate,
+)
 from tests.fixtures import random_small_pose, simulate_poses
 
 SO3 = 0.004, 0.001  # rad, m

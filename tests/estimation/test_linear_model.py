@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from handeye_drake import (linear_system, orthonormalize, relative_motions, rotation_error_deg,
-                           rotation_error_quat, translation_error_rel)
+from handeye_drake import (
+    linear_system,
+    orthonormalize,
+    relative_motions,
+    rotation_error_deg,
+    rotation_error_quat,
+    translation_error_rel,
+)
 from handeye_drake.estimation.linear_model import state_from_transform
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
 from tests.fixtures import motion_pairs, random_pose, simulate_poses
@@ -77,11 +83,19 @@ def test_relative_motions_input_errors(rng):
 # ---------------------------------------------------------------------------- orthonormalize
 @pytest.mark.parametrize("method", ["svd", "qr", "horn"])
 def test_orthonormalize_returns_proper_rotation(method, rng):
+    reflections = 0
     for _ in range(50):
-        M = rng.normal(size=(3, 3))  # includes det < 0 inputs
+        M = rng.normal(size=(3, 3))
+        if np.linalg.det(M) < 0:  # a reflection has no meaningful nearest rotation: refused
+            reflections += 1
+            with pytest.raises(ValueError, match="M: a reflection"):
+                orthonormalize(M, method)
+            continue
         R = orthonormalize(M, method)
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
         assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
+        np.testing.assert_allclose(orthonormalize(1e200 * M, method), R, atol=1e-12)
+    assert 10 < reflections < 40
     R_true = rotation_exp(rng.normal(size=3))
     np.testing.assert_allclose(orthonormalize(R_true, method), R_true, atol=1e-12)
 

@@ -2,7 +2,6 @@
 (NEES / NIS against χ² bands over seeded Monte-Carlo runs), the NIS gate against wrong camera
 measurements, its lock-out recovery, and the reported uncertainty of X_EC."""
 
-from tests.fixtures import manifold_filter, random_small_pose, tangent_error, target_filter
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -10,10 +9,16 @@ from scipy.stats import chi2
 
 from handeye_drake.estimation.manifold import ManifoldHandEyeFilter, covariance_inflation
 from handeye_drake.estimation.ml import rotation_noise_variance
-from handeye_drake.estimation.se3 import inverse_tangent_jacobian, retract_pose
 from handeye_drake.estimation.orthonormalize import orthonormalize_unchecked
-from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+from handeye_drake.estimation.se3 import (
+    inverse,
+    inverse_tangent_jacobian,
+    make_transform,
+    retract_pose,
+    rotation_exp,
+)
 from handeye_drake.estimation.validation import rotation_defect
+from tests.fixtures import manifold_filter, random_small_pose, tangent_error, target_filter
 
 RUNS = 200
 
@@ -327,7 +332,6 @@ def test_from_motions_start_matches_batch_ml():
     """Seeded from 10 motions by the robust ML start-up, the on-line filter ends at the batch ML
     estimate of all motions (the benchmark's ``manifold_ml_start``), and skips a wrong motion."""
     from handeye_drake import rotation_error_deg
-    from handeye_drake.estimation.manifold import ManifoldHandEyeFilter
     from handeye_drake.estimation.ml import refine_ml
     from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
     rng = np.random.default_rng(11)

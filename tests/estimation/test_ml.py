@@ -3,17 +3,21 @@ Jacobians against finite differences, efficiency (Monte-Carlo errors against the
 bound), better than the linear solution on noisy data, robust start-up, input validation — and
 the benchmark's pure helpers."""
 
-from tests.fixtures import manifold_filter, random_small_pose, tangent_error
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from handeye_drake.estimation import ml
-from handeye_drake.estimation.se3 import inverse_tangent_jacobian, retract_pose
-from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+from handeye_drake.estimation.se3 import (
+    inverse,
+    inverse_tangent_jacobian,
+    make_transform,
+    retract_pose,
+    rotation_exp,
+)
 from handeye_drake.estimation.solvers import solve_ax_xb
 from handeye_drake.estimation.validation import rotation_defect
-
+from tests.fixtures import manifold_filter, random_small_pose, tangent_error
 
 _pose = random_small_pose
 _perturb = retract_pose
@@ -186,7 +190,7 @@ def test_ml_covariance_propagates_to_x_ec():
 
 @pytest.mark.parametrize("noise_model", ["paper", "so3"])
 def test_ml_beats_the_linear_andreff_solution_on_noisy_data(noise_model):
-    """30 seeded data sets of small motions (PAPER §8-like, scaled down): the ML reference's
+    """30 seeded data sets of small motions (docs/method.md §8-like, scaled down): the ML reference's
     mean rotation and translation errors are below the linear (Andreff) solution's."""
     rng = np.random.default_rng(10)
     sr, st = 0.02, 0.01

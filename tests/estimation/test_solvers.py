@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-from tests.fixtures import random_pose, simulate_poses
 
 from handeye_drake.estimation.linear_model import relative_motions
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_angle, rotation_exp
 from handeye_drake.estimation.solvers import METHODS, calibrate_hand_eye, solve_ax_xb
 from handeye_drake.estimation.validation import rotation_defect
+from tests.fixtures import random_pose, simulate_poses
 
 
 def axis_angle(rng, lo_deg, hi_deg):

@@ -13,7 +13,7 @@ Tolerances:
   rounding (same 1e-9). ``calibrate_hand_eye`` keeps all pairs, so there only comparable error
   is required.
 - "andreff": ours takes the rotation from the null space of the homogeneous block and re-solves
-  the translation (Andreff 2001, PAPER §3); OpenCV solves the full inhomogeneous system in one
+  the translation (Andreff 2001, docs/method.md §3); OpenCV solves the full inhomogeneous system in one
   least squares. Different estimators: we require ours ≤ 1.5 × OpenCV's error + 1e-6, averaged
   over seeds (the mean over 5 seeds is stable to ~20%, so 1.5 catches a real regression, not
   chance).

@@ -12,17 +12,29 @@ import pytest
 
 import handeye_drake
 from handeye_drake import rotation_error_deg
-from handeye_drake.estimation.se3 import (inverse, make_transform, quat_wxyz, rotation_exp,
-                                          rotation_from_rpy)
+from handeye_drake.apps.calibrate import add_parser as add_calibrate_parser
 from handeye_drake.apps.calibrate import calibrate_streams
-from handeye_drake.recorded import (align_streams, estimate_time_offset,
-                                    form_pairs, interpolate_poses, parse_poses, pose_stream,
-                                    read_poses, robust_hand_eye)
-from handeye_drake.recorded.align import UnobservableTimeOffset
-from handeye_drake.recorded.selection import InconsistentMotions
-from handeye_drake.apps.calibrate import add_calibrate_parser
 from handeye_drake.apps.cli import main
+from handeye_drake.estimation.se3 import (
+    inverse,
+    make_transform,
+    quat_wxyz,
+    rotation_exp,
+    rotation_from_rpy,
+)
+from handeye_drake.recorded import (
+    align_streams,
+    estimate_time_offset,
+    form_pairs,
+    interpolate_poses,
+    parse_poses,
+    pose_stream,
+    read_poses,
+    robust_hand_eye,
+)
+from handeye_drake.recorded.align import UnobservableTimeOffset
 from handeye_drake.recorded.example import camera_pose, generate_example
+from handeye_drake.recorded.selection import InconsistentMotions
 
 DATA = Path(handeye_drake.__file__).parent / "data"
 ROOT = Path(__file__).resolve().parents[2]
@@ -428,8 +440,9 @@ def test_calibrate_opencv_yaml_end_to_end(tmp_path):
             fs.write("", v)
         fs.endWriteStruct()
     fs.release()
-    assert main(["calibrate", "--robot", path, "--camera", path, "--out", str(tmp_path)]) == 0
-    result = json.loads((tmp_path / "calibration.json").read_text())
+    assert main(["calibrate", "--robot", path, "--camera", path, "--out",
+                 str(tmp_path / "out")]) == 0
+    result = json.loads((tmp_path / "out" / "calibration.json").read_text())
     X = np.array(result["X_EC"]["matrix"])
     assert rotation_error_deg(X_EC, X) < 0.2 and np.linalg.norm(X[:3, 3] - X_EC[:3, 3]) < 2e-3
     assert result["time_offset"]["mode"] == "default: none (no timestamps)"

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.inverse_kinematics import DifferentialInverseKinematicsStatus
+from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder

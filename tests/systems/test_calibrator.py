@@ -8,13 +8,22 @@ from pydrake.systems.analysis import Simulator
 
 from handeye_drake import rotation_error_deg
 from handeye_drake.estimation.configs import ManifoldFilter, PaperFilter, TargetFilter
-from handeye_drake.estimation.se3 import (inverse, make_transform, pose_to_vector, rotation_exp,
-                                          vector_to_pose)
+from handeye_drake.estimation.se3 import (
+    inverse,
+    make_transform,
+    pose_to_vector,
+    rotation_exp,
+    vector_to_pose,
+)
 from handeye_drake.estimation.startup import start_estimator, two_motion_estimate
 from handeye_drake.estimation.synthetic import pose_dataset
 from handeye_drake.simulation import build_calibrator_bench
-from handeye_drake.systems.calibrator import (STATUS_COLLECTING, STATUS_FILTERING,
-                                              STATUS_INIT_FAILED, HandEyeCalibrator)
+from handeye_drake.systems.calibrator import (
+    STATUS_COLLECTING,
+    STATUS_FILTERING,
+    STATUS_INIT_FAILED,
+    HandEyeCalibrator,
+)
 
 # Every estimator, with non-zero process noise so that every term of its update matters.
 ESTIMATORS = {

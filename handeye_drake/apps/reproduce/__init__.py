@@ -6,7 +6,7 @@ them, one module per experiment (``orthonormalization``, ``filter_sweeps``, ``tw
 """
 
 from .experiments import EXPERIMENTS, FIGURES, Experiment, SweepResult, Task
-from .runner import ALL_FIGURES, add_reproduce_parser, reproduce, run_sweep, run_sweeps
+from .runner import ALL_FIGURES, add_parser, reproduce, run_sweep, run_sweeps
 
 __all__ = ["ALL_FIGURES", "EXPERIMENTS", "FIGURES", "Experiment", "SweepResult", "Task",
-           "add_reproduce_parser", "reproduce", "run_sweep", "run_sweeps"]
+           "add_parser", "reproduce", "run_sweep", "run_sweeps"]

@@ -19,7 +19,6 @@ from typing import Any, Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-
 #: Std of an angle drawn uniformly in [0, 2π): the "spread" of X's roll-pitch-yaw angles.
 X_RPY_STD = 2.0 * np.pi / np.sqrt(12.0)
 
@@ -62,7 +61,7 @@ def quaternion_distance(q: np.ndarray, q_true: np.ndarray) -> np.ndarray:
 
 
 def state_errors(states: np.ndarray, X_true: np.ndarray):
-    """Errors of filter states against the truth, PAPER §8's measures.
+    """Errors of filter states against the truth, docs/method.md §8's measures.
 
     Args:
         states: (R, K+1, 12) raw states [vec_row(R_X); t_X] of R runs.
@@ -91,7 +90,7 @@ def curve_stats(errors: np.ndarray, axis: int = 0) -> dict:
 # The paper's Kalman filter, batched over runs.
 
 def linear_systems(A: np.ndarray, B: np.ndarray):
-    """PAPER §3's C (n, 12, 12) and y (n, 12) for stacks of motions A, B (n, 4, 4): the batched
+    """docs/method.md §3's C (n, 12, 12) and y (n, 12) for stacks of motions A, B (n, 4, 4): the batched
     ``linear_model.linear_system_matrices``."""
     n = len(A)
     R_A, t_A, R_B, t_B = A[:, :3, :3], A[:, :3, 3], B[:, :3, :3], B[:, :3, 3]
@@ -108,10 +107,10 @@ def linear_systems(A: np.ndarray, B: np.ndarray):
 
 def batched_paper_filter(x0: np.ndarray, A: np.ndarray, B: np.ndarray, G2: np.ndarray,
                          P0: np.ndarray | None = None, G1: np.ndarray | None = None) -> np.ndarray:
-    """PAPER §4's Kalman filter run on R independent runs at once.
+    """docs/method.md §4's Kalman filter run on R independent runs at once.
 
     The same arithmetic as ``kalman.kalman_step`` (gain K = P Cᵀ S⁻¹, Joseph-form covariance), with
-    a fixed G2 (the paper's tuning, PAPER §5) so S stays positive definite.
+    a fixed G2 (the paper's tuning, docs/method.md §5) so S stays positive definite.
 
     Args:
         x0: (R, 12) initial states.

@@ -1,9 +1,9 @@
-"""Figures 3–8: the paper's Kalman filter on the paper's random small robot motions (PAPER §8).
+"""Figures 3–8: the paper's Kalman filter on the paper's random small robot motions (docs/method.md §8).
 
 Each run draws a hand-eye X = X_CE (roll-pitch-yaw uniform in [0, 2π), translation std 100),
 K robot motions B (rpy ~ N(0, (2π/100)²), translation ~ N(0, 1)), the exact camera motions
-A = X B X⁻¹ and measures them with PAPER §5's additive noise (σ_r on every coefficient of R_A,
-σ_t on t_A). The filter (PAPER §4) starts from an initial estimate with P0 = I12, G1 = 0 and is
+A = X B X⁻¹ and measures them with docs/method.md §5's additive noise (σ_r on every coefficient of R_A,
+σ_t on t_A). The filter (docs/method.md §4) starts from an initial estimate with P0 = I12, G1 = 0 and is
 tuned for σ = 0.1: G2 = 0.01 I12. Errors are recorded before any motion (index 0, the initial
 estimate) and after each motion; per level the curves are min, max, mean and RMS over the runs.
 
@@ -34,11 +34,27 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...estimation.solvers import solve_ax_xb
-from ...estimation.synthetic import (X_TRANSLATION_SIGMA, add_coefficient_noise, camera_motions,
-                                     random_hand_eye, random_robot_motions,
-                                     self_calibration_motions, transforms)
-from .common import (X_RPY_STD, SweepResult, Task, batched_paper_filter, chunks, curve_stats,
-                     pyplot, run_rng, state_errors, write_csv)
+from ...estimation.synthetic import (
+    X_TRANSLATION_SIGMA,
+    add_coefficient_noise,
+    camera_motions,
+    random_hand_eye,
+    random_robot_motions,
+    self_calibration_motions,
+    transforms,
+)
+from .common import (
+    X_RPY_STD,
+    SweepResult,
+    Task,
+    batched_paper_filter,
+    chunks,
+    curve_stats,
+    pyplot,
+    run_rng,
+    state_errors,
+    write_csv,
+)
 
 LEVELS = (0.0, 0.01, 0.05, 0.1, 0.5, 1.0)
 INIT_LEVELS = (0.0, 0.05, 0.10, 0.50, 0.75, 1.00)

@@ -1,10 +1,10 @@
 """Figure 2: error of the projection onto SO(3) of a noisy rotation matrix — SVD, QR and Horn's
-quaternion minimization (PAPER §6).
+quaternion minimization (docs/method.md §6).
 
 Each run draws a rotation R (roll-pitch-yaw uniform in [0, 2π), like the paper's X) and unit
 Gaussian noise N (3×3); at noise level σ the "measured" matrix is M = R + σ N (the paper's
 additive coefficient noise), projected with the project's ``orthonormalize`` methods. The error is
-PAPER §8's ‖q − q̂‖ between the true and recovered unit quaternions.
+docs/method.md §8's ‖q − q̂‖ between the true and recovered unit quaternions.
 
 Expected: SVD (with the determinant fix) and Horn reach the same optimum — the nearest rotation in
 Frobenius norm — so they agree to rounding; QR keeps the first column's direction exactly and is
@@ -22,8 +22,17 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...estimation.orthonormalize import orthonormalize_unchecked
-from .common import (SweepResult, Task, chunks, curve_stats, pyplot, quat_wxyz,
-                     quaternion_distance, run_rng, write_csv)
+from .common import (
+    SweepResult,
+    Task,
+    chunks,
+    curve_stats,
+    pyplot,
+    quat_wxyz,
+    quaternion_distance,
+    run_rng,
+    write_csv,
+)
 
 NAME = "orthonormalization"
 FIGURES = ("fig2",)

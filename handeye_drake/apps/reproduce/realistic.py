@@ -11,11 +11,11 @@ Each run perturbs the default scenario (``scenario.load_scenario()``):
 
 The loop runs the two self-calibration motions (solved with Daniilidis), then servos: the
 commanded screw decays exponentially (gain λ), and the calibrator refines X at every camera
-sample with the paper's filter (``estimator = "paper"``: PAPER §4 on consecutive motions, PAPER
-§5's diagonal G2 tuned to σ_r = 0.004, σ_t = 0.003 — the coefficient noise of a motion between two
-poses measured with the default camera noise — and the scenario's P0 = 1e-4 I12, as metres make
-the paper's I12 far too loose). The same scenario is then run with our default estimator
-(``"target"``) for comparison. Camera noise is on the measured *poses* X_CT (the default "so3"
+sample with the paper's filter (``PaperFilter``: docs/method.md §4 on consecutive motions, §5's
+diagonal G2 tuned to σ_r = 0.004, σ_t = 0.003 m — the coefficient noise of a motion between two
+poses measured with the default camera noise — and P0 = 1e-4 I12, as metres make the paper's I12
+far too loose). The same scenario is then run with our default estimator (``TargetFilter``) for
+comparison. Camera noise is on the measured *poses* X_CT (the default "so3"
 model), so consecutive motions share noise, unlike the paper's simulation.
 
 Errors are those of X_EC (the camera on the flange, as ``run_scenario`` reports them): the
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
 from ...estimation.configs import PaperFilter
+from ...estimation.errors import rotation_error_deg, rotation_error_quat, translation_error_rel
 from ...estimation.se3 import make_transform, rotation_exp, rpy
 from .common import SweepResult, Task, pyplot, run_rng, write_csv
 
@@ -79,8 +79,8 @@ def _draw_scenario(base, rng):
 
 
 def _task(seed: int, run: int, duration: float | None) -> dict:
-    from ...simulation import run_scenario
     from ...scenario import load_scenario
+    from ...simulation import run_scenario
 
     t0 = time.perf_counter()
     base = load_scenario()

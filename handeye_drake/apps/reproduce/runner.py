@@ -25,13 +25,16 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
-import sys
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..outputs import prepare_output_dir
+from ..progress import progress_bar
 from .experiments import EXPERIMENTS, FIGURES, SweepResult
+
+DEFAULT_OUT = "out/reproduce"
 
 #: All figures, in the paper's order.
 ALL_FIGURES = tuple(sorted(FIGURES, key=lambda f: int(f.removeprefix("fig"))))
@@ -39,43 +42,6 @@ ALL_FIGURES = tuple(sorted(FIGURES, key=lambda f: int(f.removeprefix("fig"))))
 #: Order in which experiments are submitted: the long ones first, for load balance.
 _SUBMIT_ORDER = ("realistic", "two_motion", "rotation_noise", "translation_noise",
                  "initial_estimate", "orthonormalization")
-
-
-class ProgressBar:
-    """A minimal progress bar on stderr: redrawn in place on a terminal, a line every 10 %
-    otherwise (log files)."""
-
-    def __init__(self, total: int, label: str = "", stream=None, width: int = 30):
-        self._total = max(int(total), 1)
-        self._label = label
-        self._stream = sys.stderr if stream is None else stream
-        self._width = width
-        self._done = 0
-        self._start = time.perf_counter()
-        self._tty = bool(getattr(self._stream, "isatty", lambda: False)())
-        self._last_decile = -1
-        self._draw()
-
-    def update(self, n: int = 1) -> None:
-        self._done = min(self._total, self._done + n)
-        self._draw()
-
-    def _draw(self) -> None:
-        frac = self._done / self._total
-        decile = int(10 * frac)
-        if not self._tty and decile == self._last_decile:
-            return
-        self._last_decile = decile
-        filled = int(round(self._width * frac))
-        text = (f"{self._label} [{'#' * filled}{'.' * (self._width - filled)}] "
-                f"{self._done}/{self._total} tasks, {time.perf_counter() - self._start:.0f} s")
-        self._stream.write(("\r" + text) if self._tty else (text + "\n"))
-        self._stream.flush()
-
-    def close(self) -> None:
-        if self._tty:
-            self._stream.write("\n")
-            self._stream.flush()
 
 
 def _experiment_names(figures) -> list[str]:
@@ -141,30 +107,27 @@ def run_sweeps(figures, runs: int | None = None, seed: int = 0, executor: Execut
     counts = {n: runs or EXPERIMENTS[n].default_runs for n in names}
     order = sorted(names, key=_SUBMIT_ORDER.index)
     jobs = [(n, t) for n in order for t in EXPERIMENTS[n].tasks(counts[n], int(seed), options)]
-    bar = ProgressBar(len(jobs), "reproduce " + ",".join(
-        f for n in names for f in EXPERIMENTS[n].figures)) if progress else None
+    bar = progress_bar(len(jobs), "reproduce " + ",".join(
+        f for n in names for f in EXPERIMENTS[n].figures), unit="tasks", enabled=progress)
     outputs: dict[str, dict] = {n: {} for n in names}
     try:
         if executor is None:
             for n, t in jobs:
                 outputs[n][t.key] = t.fn(*t.args)
-                if bar:
-                    bar.update()
+                bar.update()
         else:
             futures = {executor.submit(t.fn, *t.args): (n, t.key) for n, t in jobs}
             try:
                 for fut in as_completed(futures):
                     n, key = futures[fut]
                     outputs[n][key] = fut.result()
-                    if bar:
-                        bar.update()
+                    bar.update()
             except BaseException:
                 for fut in futures:
                     fut.cancel()
                 raise
     finally:
-        if bar:
-            bar.close()
+        bar.close()
     return {n: EXPERIMENTS[n].assemble(outputs[n], counts[n], int(seed), options) for n in names}
 
 
@@ -220,16 +183,20 @@ class ReproduceReport:
 
 
 def reproduce(figures=("all",), runs: int | None = None, seed: int = 0, workers: int = 1,
-              out="out/reproduce", executor: Executor | None = None, progress: bool = True,
+              out=DEFAULT_OUT, executor: Executor | None = None, progress: bool = True,
               motions: int | None = None, duration: float | None = None,
-              command: str = "") -> ReproduceReport:
-    """Runs the requested figures and writes PNGs, CSVs and ``summary.md`` into ``out``.
+              command: str = "", force: bool = False) -> ReproduceReport:
+    """Runs the requested figures and writes PNGs, CSVs and ``summary.md`` into ``out`` (with
+    the policy of ``apps.outputs``: a new or empty directory, or this command's earlier output
+    whose stale files are removed; ``force`` for another non-empty directory).
 
     With no ``executor`` and ``workers`` > 1 a process pool (spawn start method: Drake and BLAS
     threads do not survive a fork) of that many workers is used, and shut down afterwards.
     """
     if isinstance(workers, bool) or int(workers) != workers or workers < 1:
         raise ValueError(f"workers: expected a positive integer, got {workers!r}")
+    _experiment_names(figures)
+    out_dir = prepare_output_dir(out, "reproduce", force)
     start = time.perf_counter()
     own_pool = executor is None and workers > 1
     if own_pool:
@@ -242,7 +209,7 @@ def reproduce(figures=("all",), runs: int | None = None, seed: int = 0, workers:
         if own_pool:
             executor.shutdown(cancel_futures=True)
     compute = time.perf_counter() - start
-    written = write_figures(results, figures, out)
+    written = write_figures(results, figures, out_dir.root)
     wall = time.perf_counter() - start
     header = [
         "# Reproduction of the paper's simulations (Figures 2–10)", "",
@@ -257,9 +224,10 @@ def reproduce(figures=("all",), runs: int | None = None, seed: int = 0, workers:
         "‖t − t̂‖ / ‖t‖; \"initial\" = before the first filter update, \"final\" = after the last.",
         ""]
     text = summary_markdown(results, figures, "\n".join(header))
-    summary = Path(out) / "summary.md"
+    summary = out_dir.path("summary.md")
     summary.write_text(text)
     written.append(summary)
+    out_dir.finish(written)
     return ReproduceReport(results=results, written=written, wall_time=wall)
 
 
@@ -302,14 +270,14 @@ def _command(args) -> int:
                    if getattr(args, k) is not None] + [f"--out {args.out}"])
     report = reproduce(figures, runs=args.runs, seed=args.seed, workers=args.workers,
                        out=args.out, progress=not args.no_progress, motions=args.motions,
-                       duration=args.duration, command=command)
+                       duration=args.duration, command=command, force=args.force)
     print(f"reproduced {', '.join(_figure_list(figures, report.results))} in "
           f"{report.wall_time:.1f} s wall")
     print("wrote: " + ", ".join(str(p) for p in report.written))
     return 0
 
 
-def add_reproduce_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> argparse.ArgumentParser:
     """Adds the ``reproduce`` subcommand to an argparse ``subparsers`` object; its ``func``
     default runs it and returns the exit code."""
     p = subparsers.add_parser(
@@ -326,7 +294,13 @@ def add_reproduce_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
     p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
                    help="worker processes (default: the number of CPUs)")
-    p.add_argument("--out", default="out/reproduce", help="output directory")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help=f"output directory (default {DEFAULT_OUT}); an existing one must be "
+                        "empty or hold this command's earlier output, whose stale files are "
+                        "removed")
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that is not this command's output "
+                        "(never overwriting files the tool did not write)")
     p.add_argument("--motions", type=_positive_int,
                    help="robot motions per run in Figs 3–8 (default 100)")
     p.add_argument("--duration", type=float,

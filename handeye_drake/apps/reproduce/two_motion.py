@@ -1,8 +1,8 @@
-"""Figure 9: the two-motion initial estimate — Tsai–Lenz vs Daniilidis (PAPER §1, §8).
+"""Figure 9: the two-motion initial estimate — Tsai–Lenz vs Daniilidis (docs/method.md §1, §8).
 
 Each run draws X = X_CE as in Figs 3–8 (rpy uniform in [0, 2π), translation std 100), executes
 the two predefined self-calibration motions (30° about E's x then y axis) and measures the camera
-motions with PAPER §5's noise: σ on every coefficient of R_A (σ ∈ LEVELS) and 0.1 on t_A (as in
+motions with docs/method.md §5's noise: σ on every coefficient of R_A (σ ∈ LEVELS) and 0.1 on t_A (as in
 Figs 3–4, so each level's Daniilidis solution is the start of the filter there). Both methods
 (``solve_ax_xb`` with ``orthonormalize_inputs=True``) solve the same noisy pair.
 
@@ -25,10 +25,22 @@ from pathlib import Path
 import numpy as np
 
 from ...estimation.solvers import solve_ax_xb
-from ...estimation.synthetic import (add_coefficient_noise, camera_motions, random_hand_eye,
-                                     self_calibration_motions)
-from .common import (SweepResult, Task, chunks, pyplot, quat_wxyz, quaternion_distance, run_rng,
-                     write_csv)
+from ...estimation.synthetic import (
+    add_coefficient_noise,
+    camera_motions,
+    random_hand_eye,
+    self_calibration_motions,
+)
+from .common import (
+    SweepResult,
+    Task,
+    chunks,
+    pyplot,
+    quat_wxyz,
+    quaternion_distance,
+    run_rng,
+    write_csv,
+)
 
 NAME = "two_motion"
 FIGURES = ("fig9",)
@@ -74,7 +86,7 @@ def _task(seed: int, sigma: float, start: int, stop: int) -> tuple[np.ndarray, f
                 X_hat[i, j] = solve(list(A), list(B), solver)
             except ValueError:
                 pass
-    # PAPER §8's errors (as errors.rotation_error_quat / translation_error_rel), vectorized.
+    # docs/method.md §8's errors (as errors.rotation_error_quat / translation_error_rel), vectorized.
     errors = np.full((n, len(SOLVERS), 2), np.nan)
     ok = np.isfinite(X_hat[:, :, 0, 0])
     q_true = np.repeat(quat_wxyz(X[:, :3, :3])[:, None], len(SOLVERS), axis=1)
