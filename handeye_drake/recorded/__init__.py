@@ -7,15 +7,21 @@
 - ``selection``: motion pairs (consecutive + wide), screw-angle and residual outlier rejection,
   classical solution with held-out validation, bootstrap covariance;
 - ``calibrate``: the pipeline, its JSON/PNG outputs and the ``calibrate`` subcommand;
-- ``example``: the generator of the shipped example recording (``handeye_drake/data``).
+- ``example``: the generator of the shipped example recording (``handeye_drake/data``);
+- ``exports``: the result as URDF/xacro, a ROS 2 launch file and command, Drake model directives
+  and CameraConfig, JSON and TUM (``export_calibration``);
+- ``bags``: robot (tf), camera (pose topic or tf) streams, images and CameraInfo from ROS 1/2
+  bags without ROS (``read_bag``).
 
 Nothing here imports Drake.
 """
 
 from .align import (AlignedSamples, PoseInterpolator, TimeOffsetEstimate, UnobservableTimeOffset,
                     align_streams, estimate_time_offset, interpolate_poses)
+from .bags import BagData, CameraInfo, read_bag
 from .calibrate import (CalibrationResult, add_calibrate_parser, calibrate_files,
                         calibrate_streams, run_calibrate_command, write_outputs)
+from .exports import export_calibration
 from .formats import (FORMATS, PoseStream, parse_csv_matrix, parse_opencv_yaml, parse_poses,
                       parse_tum, pose_stream, read_poses)
 from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs, pair_residuals,
@@ -24,6 +30,8 @@ from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs,
 __all__ = [
     "FORMATS",
     "AlignedSamples",
+    "BagData",
+    "CameraInfo",
     "CalibrationResult",
     "InconsistentMotions",
     "MotionPairs",
@@ -37,6 +45,7 @@ __all__ = [
     "calibrate_files",
     "calibrate_streams",
     "estimate_time_offset",
+    "export_calibration",
     "form_pairs",
     "interpolate_poses",
     "pair_residuals",
@@ -45,6 +54,7 @@ __all__ = [
     "parse_poses",
     "parse_tum",
     "pose_stream",
+    "read_bag",
     "read_poses",
     "robust_hand_eye",
     "run_calibrate_command",

@@ -125,7 +125,14 @@ def quaternion_xyzw(R) -> np.ndarray:
 
 # --------------------------------------------------------------------------------- arguments
 def _check_X(X) -> np.ndarray:
-    M = as_transform(X, "X", rigid=True, tol=ROTATION_TOLERANCE)
+    try:
+        M = as_transform(X, "X", rigid=True, tol=ROTATION_TOLERANCE)
+    except ValueError as e:
+        if "rotation block" not in str(e):
+            raise
+        raise ValueError(f"{e}; exports round-trip to 1e-9, so X's rotation must be orthonormal "
+                         "to that precision: project it first (estimation.orthonormalize)") \
+            from None
     if np.abs(M[3] - [0.0, 0.0, 0.0, 1.0]).max() != 0.0:
         M = M.copy()
         M[3] = [0.0, 0.0, 0.0, 1.0]
