@@ -267,14 +267,18 @@ class _TfBuffer:
                     f"({'/tf_static' if edge.static else '/tf'}) to {parent!r} ({topic}); a "
                     "chain through a re-parented frame is not supported")
             edge = self.edges[child] = _Edge(parent, static)
-        where = f"{self.bag}: {topic} message {message} ({parent} → {child})"
-        X = _pose_from(transform.transform.translation, transform.transform.rotation, where)
-        if static:
-            edge.X = X  # like tf2: the latest static transform replaces the previous one
-            return
         tr, rot = transform.transform.translation, transform.transform.rotation
+        if static:  # like tf2: the latest static transform replaces the previous one
+            edge.X = _pose_from(tr, rot, f"{self.bag}: {topic} message {message} ({parent} → "
+                                f"{child})")
+            return
+        values = (tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w)
+        norm = math.sqrt(values[3] ** 2 + values[4] ** 2 + values[5] ** 2 + values[6] ** 2)
+        if not (all(map(math.isfinite, values)) and abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE):
+            # the full check, for its message (the fast path above is the common case)
+            _pose_from(tr, rot, f"{self.bag}: {topic} message {message} ({parent} → {child})")
         edge.stamps.append(_stamp_ns(transform.header))
-        edge.data.extend((tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w))
+        edge.data.extend(values)
         edge.messages.append(message)
         if self._keep is None and self._resolve_all():
             self._keep = {c for path in self.chains.values() for c, _ in path}
