@@ -319,7 +319,8 @@ def test_images_and_camera_info(recording, sim, encoding):
     topic = "/camera/color/image_raw/compressed" if encoding == "compressed" else \
         f"/camera/{encoding}/image_raw"
     data = bags.read_bag(path, robot_frames=None, image_topic=topic,
-                         camera_info_topic="/camera/rgb8/camera_info")
+                         camera_info_topic="/camera/rgb8/camera_info" if encoding != "rgb8"
+                         else None)  # rgb8: found beside the image topic
     assert [s for s, _ in data.images] == [_seconds(ns) for ns, _, _ in sim["images"]]
     enc = "rgb8" if encoding == "compressed" else encoding
     for (_, img), (_, rgb, mono16) in zip(data.images, sim["images"]):
@@ -470,3 +471,14 @@ def test_bad_arguments(tmp_path, recording):
     junk.write_bytes(b"not a bag at all")
     with pytest.raises(ValueError, match=r"junk\.bag: cannot read as a ROS bag"):
         bags.read_bag(junk)
+
+
+def test_camera_info_topic_is_looked_up_in_enclosing_namespaces():
+    info, image = "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/Image"
+    topics = {"/cam/color/camera_info": (info, 1), "/cam/depth/camera_info": (info, 1),
+              "/cam/color/image_raw": (image, 1)}
+    find = bags._find_camera_info
+    assert find("/cam/color/image_raw/compressed", topics) == "/cam/color/camera_info"
+    assert find("/cam/color/image_raw", topics) == "/cam/color/camera_info"
+    assert find("/other/image", topics) is None  # two candidates, none beside it
+    assert find("/other/image", {"/x/camera_info": (info, 1)}) == "/x/camera_info"

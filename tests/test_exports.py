@@ -320,6 +320,7 @@ def test_never_overwrites_without_permission(tmp_path):
     ({"X": np.full((4, 4), np.nan)}, r"X: .*(NaN|finite)"),
     ({"formats": ["urdf", "sdf"]}, r"formats: unknown 'sdf'"),
     ({"formats": []}, r"formats: empty list"),
+    ({"formats": "all,sdf"}, r"formats: unknown 'sdf'"),
     ({"mode": "hand_in_eye"}, r"mode: expected one of eye_in_hand, eye_to_hand"),
     ({"parent_frame": "tool 0"}, r"parent_frame: expected a frame/link name"),
     ({"child_frame": 'cam"era'}, r"child_frame: expected a frame/link name"),

@@ -433,6 +433,19 @@ def _camera_info(msg, where: str) -> CameraInfo:
 
 
 # -------------------------------------------------------------------------------- entry point
+def _find_camera_info(image_topic: str, topics: dict) -> str | None:
+    """The CameraInfo topic of an image topic: ``camera_info`` in its namespace or an enclosing
+    one (``/cam/color/image_raw/compressed`` → ``/cam/color/camera_info``), else the bag's only
+    CameraInfo topic, else None."""
+    infos = [t for t, (typ, _) in topics.items() if typ == CAMERA_INFO_TYPE]
+    parts = image_topic.rstrip("/").split("/")
+    for k in range(len(parts) - 1, 0, -1):
+        candidate = "/".join(parts[:k]) + "/camera_info"
+        if candidate in infos:
+            return candidate
+    return infos[0] if len(infos) == 1 else None
+
+
 def _open(path: Path):
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
@@ -455,8 +468,8 @@ def read_bag(path, robot_frames=("base_link", "tool0"), camera_topic=None, camer
         camera_frames: (CAMERA, TARGET) or "CAMERA:TARGET": X_CT = pose of TARGET in CAMERA from
             tf (either tree direction).
         image_topic: an Image or CompressedImage topic.
-        camera_info_topic: a CameraInfo topic; default: ``<image_topic's namespace>/camera_info``
-            when it exists, else the bag's only CameraInfo topic, if any.
+        camera_info_topic: a CameraInfo topic; default: ``camera_info`` in the image topic's
+            namespace or an enclosing one, else the bag's only CameraInfo topic, if any.
         camera_invert: the camera topic holds X_TC (camera in target), or camera_frames is
             (TARGET, CAMERA); inverted into X_CT.
         max_images: keep at most this many images, evenly spaced over the topic (None: all).
@@ -507,10 +520,7 @@ def _read(reader, bag, robot_pair, camera_topic, camera_pair, image_topic, camer
     if image_topic is not None:
         need(image_topic, (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), "image_topic")
         if camera_info_topic is None:
-            sibling = image_topic.rsplit("/", 1)[0] + "/camera_info"
-            infos = [t for t, (typ, _) in topics.items() if typ == CAMERA_INFO_TYPE]
-            camera_info_topic = sibling if sibling in infos else (
-                infos[0] if len(infos) == 1 else None)
+            camera_info_topic = _find_camera_info(image_topic, topics)
     if camera_info_topic is not None:
         need(camera_info_topic, (CAMERA_INFO_TYPE,), "camera_info_topic")
     tf_topics = [t for t, (typ, _) in topics.items() if typ in TF_TYPES]

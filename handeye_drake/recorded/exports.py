@@ -541,9 +541,9 @@ def parse_formats(formats) -> tuple[str, ...]:
     except TypeError:
         raise ValueError(f"formats: expected names from {', '.join(FORMATS)} or 'all', got "
                          f"{formats!r}") from None
-    if "all" in items:
+    unknown = [f for f in items if f not in FORMATS and f != "all"]
+    if "all" in items and not unknown:
         return FORMATS
-    unknown = [f for f in items if f not in FORMATS]
     if unknown or not items:
         what = f"unknown {', '.join(map(repr, unknown))}" if unknown else "empty list"
         raise ValueError(f"formats: {what}; expected names from {', '.join(FORMATS)} or 'all'")
