@@ -43,7 +43,6 @@ import numpy as np
 
 from .camera_model import CameraIntrinsics
 from .targets import (
-    AprilGridTarget,
     AprilTagTarget,
     CharucoTarget,
     ChessboardTarget,
