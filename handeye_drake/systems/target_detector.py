@@ -14,7 +14,7 @@ from pydrake.systems.sensors import ImageGrey8U, ImageRgba8U
 from ..estimation.se3 import pose_to_vector
 from ..estimation.validation import check_positive
 from ..vision.camera_model import CameraIntrinsics
-from ..vision.detection import detect_target
+from ..vision.detection import as_grey_image, detect_target
 from ..vision.targets import object_points, validate_target
 
 _INPUT_TYPES = {"rgba": ("color_image", ImageRgba8U), "grey": ("grey_image", ImageGrey8U)}
@@ -29,6 +29,8 @@ class TargetDetector(LeafSystem):
     ``feature_ids`` chooses the N target points reported as image features (ids as in
     ``object_points(target)``; default: all of them, in that order), e.g. the four outer corners
     for IBVS; ``feature_points_T`` gives their coordinates p_TQ in the target frame.
+    ``detect_options`` (min_points, min_pixel_sigma, ambiguity_ratio, max_reprojection_rms_px)
+    go to ``detect_target``.
 
     Input port (abstract, one of):
         color_image: ``ImageRgba8U`` (``RgbdSensor.color_image_output_port()``), converted to
@@ -53,7 +55,7 @@ class TargetDetector(LeafSystem):
     """
 
     def __init__(self, target, intrinsics: CameraIntrinsics, period: float, offset: float = 0.0,
-                 feature_ids=None, input_type: str = "rgba"):
+                 feature_ids=None, input_type: str = "rgba", **detect_options):
         LeafSystem.__init__(self)
         self._target = validate_target(target)
         if not isinstance(intrinsics, CameraIntrinsics):
@@ -66,6 +68,13 @@ class TargetDetector(LeafSystem):
             raise ValueError(f"input_type: expected one of {sorted(_INPUT_TYPES)}, got "
                              f"{input_type!r}")
         self._input_type = input_type
+        self._detect_options = dict(detect_options)
+        # Checks the options here (on a blank image) rather than at the first frame.
+        try:
+            detect_target(np.zeros((intrinsics.height, intrinsics.width), np.uint8),
+                          self._target, intrinsics, **self._detect_options)
+        except TypeError as e:
+            raise ValueError(f"detect_options: {e}") from None
         ids, p_TQ = object_points(self._target)
         ids = np.asarray(ids, dtype=int)
         if feature_ids is None:
@@ -127,6 +136,10 @@ class TargetDetector(LeafSystem):
         return self._period
 
     @property
+    def offset(self) -> float:
+        return self._offset
+
+    @property
     def feature_ids(self) -> np.ndarray:
         return self._feature_ids.copy()
 
@@ -175,14 +188,11 @@ class TargetDetector(LeafSystem):
                 f"{self._image_port.get_name()} input of {self.get_name()!r}: image is "
                 f"{width}×{height} px but the intrinsics are {self._intrinsics.width}×"
                 f"{self._intrinsics.height}")
-        data = image.data
-        if self._input_type == "grey":
-            return np.ascontiguousarray(data[:, :, 0])
-        import cv2  # the vision package's dependency
-        return cv2.cvtColor(data, cv2.COLOR_RGBA2GRAY)
+        return as_grey_image(image.data)
 
     def _Detect(self, context, state) -> None:
-        detection = detect_target(self._GreyImage(context), self._target, self._intrinsics)
+        detection = detect_target(self._GreyImage(context), self._target, self._intrinsics,
+                                  **self._detect_options)
         discrete = state.get_mutable_discrete_state()
         n = self._feature_ids.size
         visible = np.zeros(n)
