@@ -116,6 +116,8 @@ def test_camera_config_carries_intrinsics_and_half_pixel():
     assert (color.core().clipping().near(), color.core().clipping().far()) == (0.05, 4.0)
     assert (depth.depth_range().min_depth(), depth.depth_range().max_depth()) == (0.05, 4.0)
     assert config.renderer_class.backend == "EGL"
+    # The colour frame is the sensor body frame: X_PC given to add_rendered_camera places it.
+    assert np.array_equal(color.core().sensor_pose_in_camera_body().GetAsMatrix4(), np.eye(4))
 
 
 def test_camera_config_rejects_what_drake_cannot_render():
