@@ -10,14 +10,18 @@ import math
 import cv2
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource
+from pydrake.systems.sensors import ImageRgba8U
 
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log
 from handeye_drake.systems.arm import UR5E_HOME_Q, add_arm
+from handeye_drake.systems.image_downsampler import ImageAreaDownsampler
 from handeye_drake.systems.rendered_camera import (
     add_rendered_camera,
     add_target_geometry,
@@ -291,3 +295,25 @@ def test_board_on_a_plant_body_moves_with_it():
     assert detection.found, detection.reason
     rotation_deg, translation_mm = pose_errors(inverse(X_TC), detection.X_CT)
     assert rotation_deg < 0.05 and translation_mm < 0.4, (rotation_deg, translation_mm)
+
+
+def test_area_downsampler_averages_blocks():
+    rng = np.random.default_rng(3)
+    big = rng.integers(0, 256, size=(6, 9, 4), dtype=np.uint8)
+    builder = DiagramBuilder()
+    value = ImageRgba8U(9, 6)
+    value.mutable_data[:] = big
+    source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
+    downsampler = builder.AddSystem(ImageAreaDownsampler(3, 2, 3))
+    builder.Connect(source.get_output_port(), downsampler.get_input_port())
+    wrong = builder.AddSystem(ImageAreaDownsampler(4, 2, 3))
+    builder.Connect(source.get_output_port(), wrong.get_input_port())
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    small = downsampler.get_output_port().Eval(downsampler.GetMyContextFromRoot(context)).data
+    expected = np.round(big.reshape(2, 3, 3, 3, 4).astype(float).mean(axis=(1, 3)))
+    assert np.array_equal(small, expected.astype(np.uint8))
+    with pytest.raises(ValueError, match=r"color_image input of .*: expected 12×6 px, got 9×6"):
+        wrong.get_output_port().Eval(wrong.GetMyContextFromRoot(context))
+    with pytest.raises(ValueError, match="factor: expected an integer ≥ 1, got 0"):
+        ImageAreaDownsampler(3, 2, 0)

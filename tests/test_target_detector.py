@@ -9,13 +9,13 @@ import math
 import cv2
 import numpy as np
 import pytest
+from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
-from pydrake.common.value import AbstractValue
 from pydrake.systems.sensors import ImageGrey8U
 
 from conftest import tangent_error

@@ -68,8 +68,8 @@ from pydrake.systems.sensors import CameraConfig, RgbdSensor
 
 from ..estimation.validation import as_matrix, as_transform, check_positive
 from ..vision.camera_model import CameraIntrinsics
-from .image_downsampler import ImageAreaDownsampler
 from ..vision.targets import render_target
+from .image_downsampler import ImageAreaDownsampler
 
 #: Name of the RenderEngineVtk instance the cameras of this module share.
 RENDERER_NAME = "handeye_vtk"
