@@ -54,6 +54,7 @@ Rendered images (``render_target``) use OpenCV's pixel convention: the centre of
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 import struct
@@ -140,6 +141,11 @@ def _aruco():
 def dictionary_names() -> list[str]:
     """Every ``cv2.aruco.DICT_*`` name in OpenCV's canonical spelling (AprilTag and MIP names
     with a lowercase ``h``)."""
+    return list(_dictionary_names())
+
+
+@functools.lru_cache(maxsize=None)
+def _dictionary_names() -> tuple[str, ...]:
     names = [n for n in dir(_aruco()) if n.startswith("DICT_")]
     canonical = {}
     for n in names:
@@ -147,13 +153,13 @@ def dictionary_names() -> list[str]:
         # Both DICT_APRILTAG_36H11 and DICT_APRILTAG_36h11 exist; keep the lowercase one.
         if key not in canonical or n != key:
             canonical[key] = n
-    return sorted(canonical.values())
+    return tuple(sorted(canonical.values()))
 
 
 def canonical_dictionary(name: str) -> str:
     """The canonical ``DICT_*`` name of ``name`` (case-insensitive, ``DICT_`` prefix optional);
     ValueError listing the valid names otherwise."""
-    lookup = {n.upper(): n for n in dictionary_names()}
+    lookup = {n.upper(): n for n in _dictionary_names()}
     key = str(name).strip().upper()
     if not key.startswith("DICT_"):
         key = "DICT_" + key
@@ -181,9 +187,15 @@ def target_dictionary_name(target) -> str | None:
 
 
 def get_dictionary(name: str):
-    """``cv2.aruco.Dictionary`` of a ``DICT_*`` name (any case)."""
+    """``cv2.aruco.Dictionary`` of a ``DICT_*`` name (any case). Shared between calls: do not
+    modify it."""
+    return _predefined_dictionary(canonical_dictionary(name))
+
+
+@functools.lru_cache(maxsize=64)
+def _predefined_dictionary(name: str):
     aruco = _aruco()
-    return aruco.getPredefinedDictionary(getattr(aruco, canonical_dictionary(name)))
+    return aruco.getPredefinedDictionary(getattr(aruco, name))
 
 
 def _dictionary_size(name: str) -> int:
@@ -228,7 +240,27 @@ def validate_target(target) -> Target:
     """Checks a target's fields (sizes, counts, dictionary capacity); returns it or raises
     ValueError naming the field. Also accepts a spec string."""
     if isinstance(target, str):
-        return parse_target(target)
+        return _parse_cached(target)
+    if isinstance(target, TARGET_TYPES):
+        try:
+            hash(target)
+        except TypeError:  # a field of the wrong type (e.g. a list): report it uncached
+            return _validate(target)
+        return _validate_cached(target)
+    return _validate(target)
+
+
+@functools.lru_cache(maxsize=256)
+def _validate_cached(target) -> Target:
+    return _validate(target)
+
+
+@functools.lru_cache(maxsize=256)
+def _parse_cached(spec: str) -> Target:
+    return parse_target(spec)
+
+
+def _validate(target) -> Target:
     name = type(target).__name__
     if isinstance(target, ChessboardTarget):
         # OpenCV's chessboard detectors need more than 2 corners in each direction.
@@ -385,7 +417,7 @@ def parse_target(spec: str) -> Target:
                 bad(5 if len(fields) == 6 else 2, "FIRST_ID" if len(fields) == 6 else "TAGSXxTAGSY",
                     f"needs ids up to {first + tx * ty - 1} but family {fam} has ids 0…{n - 1}")
             target = AprilGridTarget(fam, tx, ty, size, spacing, first)
-        return validate_target(target)
+        return _validate(target)
     except ValueError as e:
         if str(e).startswith(f"target spec {spec!r}"):
             raise
@@ -466,7 +498,12 @@ def object_points(target) -> tuple[np.ndarray, np.ndarray]:
         (ids (N,) int, p_TQ (N, 3) float, metres), ids in increasing order: chessboard corners
         0…COLS·ROWS−1, ChArUco corners 0…(SQUARESX−1)(SQUARESY−1)−1, AprilTag corners
         tag_id·4 + k (see the module docstring for the positions)."""
-    target = validate_target(target)
+    ids, p = _object_points(validate_target(target))
+    return ids.copy(), p.copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _object_points(target) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(target, ChessboardTarget):
         j, i = np.divmod(np.arange(target.cols * target.rows), target.cols)
         p = np.stack([i * target.square, j * target.square, np.zeros(i.size)], axis=1)
