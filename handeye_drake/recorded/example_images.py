@@ -7,7 +7,7 @@ board from 0.38–0.55 m, tilted 12–32° from the board's normal about a rando
 rolled up to ±30° about its optical axis, so consecutive poses differ by 15–40° about varied
 axes. Each pose is reached by inverse kinematics on the UR5e (so every pose is reachable) and the
 image is rendered by Drake (RenderEngineVtk, EGL) from the camera mounted on ``tool0``, with the
-arm's own geometry in the scene.
+arm's own geometry in the scene, a dark background and 3 × 3 supersampling (anti-aliasing).
 
 Files written to ``out_dir``:
 
@@ -57,6 +57,9 @@ _R_BT = rotation_from_rpy([0.0, 0.0, math.radians(10.0)]) @ rotation_from_rpy([m
 #: Anti-aliasing: each pixel averages 3 × 3 rendered samples (corner RMS ≈ 0.04 px, like a
 #: good real camera, instead of up to 0.3 px with one sample per pixel).
 SUPERSAMPLE = 3
+
+#: A dark grey-blue background (a table or floor), so the board's white border stands out.
+BACKGROUND = (0.30, 0.32, 0.36)
 
 #: Pixels of margin every target corner keeps from the image border.
 IMAGE_MARGIN_PX = 25.0
@@ -209,7 +212,7 @@ def generate_example_images(out_dir, seed: int = 0, num_images: int = 14,
     add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
     camera = mount_rendered_camera(builder, arm.scene_graph, arm.plant, arm.ee_frame, TRUE_X_EC,
                                    intrinsics, supersample=SUPERSAMPLE, clipping_near=0.05,
-                                   clipping_far=3.0)
+                                   clipping_far=3.0, background=BACKGROUND)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     plant_context = arm.plant.GetMyMutableContextFromRoot(context)
@@ -241,6 +244,7 @@ def generate_example_images(out_dir, seed: int = 0, num_images: int = 14,
         "X_EC_rpy_deg": np.degrees(rpy(TRUE_X_EC[:3, :3])).tolist(),
         "X_BT": X_BT.tolist(),
         "pixels_per_metre": float(pixels_per_metre),
+        "supersample": SUPERSAMPLE,
         "images": images,
     }
     (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
