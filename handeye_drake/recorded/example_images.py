@@ -1,7 +1,7 @@
 """Generator of a small rendered image set for ``handeye-drake calibrate --images``.
 
 A UR5e (the bundled model, base at the world origin, so B = W) carries a camera on its flange at
-``TRUE_X_EC`` (6.5 cm off the flange axis, turned 92° about it and tilted a few degrees); a ChArUco
+``TRUE_X_EC`` (6.4 cm off the flange axis, turned 92° about it and tilted a few degrees); a ChArUco
 board lies face up on the table. For each of ``num_images`` robot poses the camera looks at the
 board from 0.38–0.55 m, tilted 12–32° from the board's normal about a random horizontal axis and
 rolled up to ±30° about its optical axis, so consecutive poses differ by 15–40° about varied
@@ -38,7 +38,7 @@ import numpy as np
 from ..estimation.se3 import inverse, make_transform, quat_wxyz, rotation_angle, \
     rotation_exp, rotation_from_rpy, rpy
 
-#: The true camera-on-hand transform: camera 6.4 cm ahead of the flange, 6.5 cm aside, turned 92°
+#: The true camera-on-hand transform: camera 6.4 cm ahead of the flange, 6.4 cm aside, turned 92°
 #: about the flange axis and tilted by −3° and 4°.
 TRUE_X_EC = make_transform(rotation_from_rpy(np.radians([-3.0, 4.0, 92.0])),
                            [0.038, -0.052, 0.064])
