@@ -19,7 +19,9 @@ uncertainty:
    (reprojection RMS ratio < ``ambiguity_ratio``) while being a genuinely different pose
    (outside the best one's 99.9 % covariance ellipsoid), the detection is "not found" with the
    reason "ambiguous pose (IPPE ratio …)" — a coin flip between two poses is never reported as a
-   measurement (typically a single small tag seen nearly head-on; tilt it or use a grid);
+   measurement (typically a single small tag far away and tilted by a few to ~15°: e.g. a 5 cm
+   tag at 1 m tilted by 10°; seen exactly head-on the two poses merge and the covariance covers
+   the tilt uncertainty; a grid or a board avoids the problem);
 3. uncertainty: ``covariance`` = σ² (JᵀJ)⁻¹ with J the 2n×6 Jacobian of the distorted pixel
    coordinates with respect to the error state [δθ; δt] of ``X_CT`` (R = exp([δθ]×) R̂,
    t = t̂ + δt, δθ in radians about C's axes; the convention of ``estimation.manifold``) and
@@ -255,11 +257,11 @@ def _refine_tag_corners(grey, corners: np.ndarray, bits: int,
                         intrinsics: CameraIntrinsics) -> np.ndarray:
     """Tag corners (M, 4, 2) moved to the intersections of the tags' fitted outer border edges.
 
-    Along each edge the grey profile across it (black inside, white outside) is
-    sampled at 32 places over ±0.45 cell; the edge lies where the integrated darkness of the profile equals
-    the distance from the profile's dark end (exact for a symmetric blur, whatever the grey
-    levels). Lines are fitted to these points in undistorted pixel coordinates (distortion does
-    not bend them there), with one 3-MAD outlier pass, and intersected. A tag whose edges cannot
+    Along each edge the grey profile across it (black inside, white outside) is sampled at 32
+    places over ±0.45 cell; the edge lies where the integrated darkness of the profile equals the
+    distance from the profile's dark end (exact for a symmetric blur, whatever the grey levels).
+    Lines are fitted to these points in undistorted pixel coordinates (distortion does not bend
+    them there), with one 3-MAD outlier pass, and intersected. A tag whose edges cannot
     be measured (image border, low contrast) keeps ArUco's corners."""
     import cv2
     original = np.asarray(corners, float).reshape(-1, 4, 2)
@@ -408,7 +410,8 @@ def _pose(rvec, tvec) -> np.ndarray:
 
 
 def _not_found(reason, ids, pts, obj, note="") -> TargetDetection:
-    return TargetDetection(False, reason, np.asarray(ids, int), np.asarray(pts, float).reshape(-1, 2),
+    return TargetDetection(False, reason, np.asarray(ids, int),
+                           np.asarray(pts, float).reshape(-1, 2),
                            np.asarray(obj, float).reshape(-1, 3), None, math.nan, None, math.nan,
                            note)
 

@@ -263,7 +263,8 @@ def load_intrinsics(spec_or_path, width: int | None = None,
     path = Path(spec_or_path)
     text_arg = str(spec_or_path).strip()
     if not path.is_file():
-        if "," in text_arg and "/" not in text_arg:
+        looks_like_file = "/" in text_arg or path.suffix.lower() in (".yaml", ".yml", ".xml")
+        if "," in text_arg and not looks_like_file:
             return parse_intrinsics_spec(text_arg, width, height)
         raise ValueError(f"intrinsics {text_arg!r}: no such file, and not a {_SPEC_FORM} string")
     source = f"intrinsics file {str(path)!r}"

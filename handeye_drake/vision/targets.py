@@ -4,14 +4,12 @@
 Four target types, each parsed from a short spec string (``parse_target``) and written back by
 ``format_target`` (its exact inverse on canonical specs):
 
-==============  ===========================================================  =====================
-type            spec                                                          example
-==============  ===========================================================  =====================
-chessboard      ``chessboard:COLSxROWS:SQUARE``                               ``chessboard:9x6:0.0236``
-ChArUco         ``charuco:SQUARESXxSQUARESY:SQUARE:MARKER:DICT[:legacy]``     ``charuco:5x7:0.036195:0.018256:DICT_6X6_250``
-one AprilTag    ``apriltag:FAMILY:SIZE[:ID]``                                 ``apriltag:36h11:0.048:10``
-AprilTag grid   ``aprilgrid:FAMILY:TAGSXxTAGSY:SIZE:SPACING[:FIRST_ID]``      ``aprilgrid:36h11:6x6:0.088:0.3``
-==============  ===========================================================  =====================
+* chessboard: ``chessboard:COLSxROWS:SQUARE``, e.g. ``chessboard:9x6:0.0236``;
+* ChArUco: ``charuco:SQUARESXxSQUARESY:SQUARE:MARKER:DICT[:legacy]``, e.g.
+  ``charuco:5x7:0.036195:0.018256:DICT_6X6_250``;
+* one AprilTag: ``apriltag:FAMILY:SIZE[:ID]``, e.g. ``apriltag:36h11:0.048:10``;
+* AprilTag grid: ``aprilgrid:FAMILY:TAGSXxTAGSY:SIZE:SPACING[:FIRST_ID]``, e.g.
+  ``aprilgrid:36h11:6x6:0.088:0.3``.
 
 Lengths are metres. COLSxROWS of a chessboard counts INNER corners (a 9x6 board has 10x7
 squares). DICT is any ``cv2.aruco.DICT_*`` name (case-insensitive on input, written back in
@@ -30,8 +28,9 @@ z axis pointing away from it (``X_CT[:3, 2] · X_CT[:3, 3] > 0``).
 
 * chessboard: origin at the first inner corner, the one diagonally adjacent to the black corner
   square at the top-left of the printed image; inner corner (i, j) (i-th column, j-th row) is at
-  (i·SQUARE, j·SQUARE, 0) and has id j·COLS + i — the order of ``cv2.findChessboardCorners`` /
-  ``findChessboardCornersSB`` for pattern size (COLS, ROWS). The printed board extends one
+  (i·SQUARE, j·SQUARE, 0) and has id j·COLS + i — the order of ``cv2.findChessboardCorners``
+  for pattern size (COLS, ROWS) (``findChessboardCornersSB`` starts from the other end; the
+  detector relabels its corners from the printed colours). The printed board extends one
   square beyond the inner corners on every side. When COLS + ROWS is odd the corner colours fix
   the orientation (the detector uses them); when it is even the board looks the same after a
   half turn and the pose is only defined up to that turn — prefer COLS + ROWS odd (9x6, 7x4…).
@@ -170,7 +169,8 @@ def canonical_dictionary(name: str) -> str:
 
 
 def apriltag_dictionary_name(family: str) -> str:
-    """``cv2.aruco`` dictionary name of an AprilTag family (``36h11`` → ``DICT_APRILTAG_36h11``)."""
+    """``cv2.aruco`` dictionary name of an AprilTag family (``36h11`` →
+    ``DICT_APRILTAG_36h11``)."""
     if family not in APRILTAG_FAMILIES:
         raise ValueError(f"family: unknown AprilTag family {family!r}, expected one of "
                          f"{', '.join(APRILTAG_FAMILIES)}")
@@ -237,8 +237,9 @@ def _length_field(value, what: str) -> float:
 
 
 def validate_target(target) -> Target:
-    """Checks a target's fields (sizes, counts, dictionary capacity); returns it or raises
-    ValueError naming the field. Also accepts a spec string."""
+    """Checks a target's fields (sizes, counts, dictionary capacity) and returns it with
+    normalized field types (ints, floats, bool), or raises ValueError naming the field. Also
+    accepts a spec string."""
     if isinstance(target, str):
         return _parse_cached(target)
     if isinstance(target, TARGET_TYPES):
@@ -264,9 +265,9 @@ def _validate(target) -> Target:
     name = type(target).__name__
     if isinstance(target, ChessboardTarget):
         # OpenCV's chessboard detectors need more than 2 corners in each direction.
-        _int_field(target.cols, f"{name}.cols", 3)
-        _int_field(target.rows, f"{name}.rows", 3)
-        _length_field(target.square, f"{name}.square")
+        target = ChessboardTarget(_int_field(target.cols, f"{name}.cols", 3),
+                                  _int_field(target.rows, f"{name}.rows", 3),
+                                  _length_field(target.square, f"{name}.square"))
     elif isinstance(target, CharucoTarget):
         sx = _int_field(target.squares_x, f"{name}.squares_x", 2)
         sy = _int_field(target.squares_y, f"{name}.squares_y", 2)
@@ -285,24 +286,27 @@ def _validate(target) -> Target:
                                         f"a {sx}x{sy} board needs {needed}")
         if not isinstance(target.legacy, (bool, np.bool_)):
             _fail(f"{name}.legacy", f"expected a bool, got {target.legacy!r}")
+        target = CharucoTarget(sx, sy, square, marker, dict_name, bool(target.legacy))
     elif isinstance(target, AprilTagTarget):
         apriltag_dictionary_name(target.family)
-        _length_field(target.size, f"{name}.size")
+        size = _length_field(target.size, f"{name}.size")
         tag_id = _int_field(target.id, f"{name}.id", 0)
         n = _dictionary_size(apriltag_dictionary_name(target.family))
         if tag_id >= n:
             _fail(f"{name}.id", f"family {target.family} has ids 0…{n - 1}, got {tag_id}")
+        target = AprilTagTarget(target.family, size, tag_id)
     elif isinstance(target, AprilGridTarget):
         apriltag_dictionary_name(target.family)
         tx = _int_field(target.tags_x, f"{name}.tags_x", 1)
         ty = _int_field(target.tags_y, f"{name}.tags_y", 1)
-        _length_field(target.size, f"{name}.size")
-        _length_field(target.spacing, f"{name}.spacing")
+        size = _length_field(target.size, f"{name}.size")
+        spacing = _length_field(target.spacing, f"{name}.spacing")
         first = _int_field(target.first_id, f"{name}.first_id", 0)
         n = _dictionary_size(apriltag_dictionary_name(target.family))
         if first + tx * ty > n:
             _fail(f"{name}.first_id", f"family {target.family} has ids 0…{n - 1}; a {tx}x{ty} "
                                       f"grid from id {first} needs up to {first + tx * ty - 1}")
+        target = AprilGridTarget(target.family, tx, ty, size, spacing, first)
     else:
         raise ValueError(f"target: expected one of {', '.join(t.__name__ for t in TARGET_TYPES)} "
                          f"or a spec string, got {type(target).__name__}")

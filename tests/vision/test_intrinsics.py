@@ -127,6 +127,7 @@ def test_spec_string():
     ("-600,600,320,240", 640, 480, r"focal lengths .* must be > 0"),
     ("600,600,320,240", 640.5, 480, r"^width: image size must be an integer ≥ 1 pixel, got 640.5"),
     ("missing_file.yaml", None, None, r"no such file, and not a fx,fy,cx,cy"),
+    ("cam,1.yaml", 640, 480, r"^intrinsics 'cam,1.yaml': no such file, and not a fx,fy,cx,cy"),
 ])
 def test_spec_errors(spec, width, height, message):
     with pytest.raises(ValueError, match=message):

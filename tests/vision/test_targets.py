@@ -84,6 +84,13 @@ def test_spec_errors_name_the_field_and_form(spec, message):
     assert "expected" in text  # every message shows the expected form or the allowed values
 
 
+def test_constructed_targets_are_validated_and_normalized():
+    target = parse_target(ChessboardTarget(9.0, 6, 1))
+    assert type(target.cols) is int and type(target.square) is float
+    assert object_points(target)[0].dtype.kind == "i"
+    assert parse_target(AprilTagTarget("36h11", 0.05, np.int64(3))).id == 3
+
+
 def test_constructed_targets_are_validated():
     with pytest.raises(ValueError, match=r"ChessboardTarget.cols: must be ≥ 3, got 1"):
         object_points(ChessboardTarget(1, 6, 0.02))
@@ -260,3 +267,13 @@ def test_write_printable_errors(tmp_path):
         write_printable("chessboard:9x6:0.02", tmp_path / "missing" / "board.png")
     with pytest.raises(ValueError, match=r"dpi: expected a finite number > 0"):
         write_printable("chessboard:9x6:0.02", tmp_path / "board.png", dpi=-3)
+
+
+def test_vision_modules_do_not_load_drake():
+    import subprocess
+    import sys
+    code = ("import sys\n"
+            "import handeye_drake.vision.targets, handeye_drake.vision.intrinsics\n"
+            "import handeye_drake.vision.detection\n"
+            "assert not any(m.startswith('pydrake') for m in sys.modules), 'pydrake loaded'")
+    subprocess.run([sys.executable, "-c", code], check=True)
