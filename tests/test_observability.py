@@ -154,7 +154,9 @@ def test_no_rotation_is_named_as_the_cause():
     rep = ob.observability_report(X_BE, X_CE, X_BT, SR, ST)
     assert len(rep.unobservable) == 3  # the whole camera position on the hand
     assert rep.motion.num_motions == 0
-    assert all("the robot does not rotate" in m for m in rep.messages[:3])
+    assert rep.messages[0] == ("the camera position in E (translation along every axis) is "
+                               "unobservable: the robot does not rotate between the samples")
+    assert rep.suggested_fixes() == ["tx", "ty", "tz"]
 
 
 def test_analyze_observability_rejects_bad_input():

@@ -264,7 +264,7 @@ def axis_name(v, frame: str) -> str:
     return f"{frame} [{v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f}]"
 
 
-@dataclass
+@dataclass(eq=False)
 class Direction:
     """One principal direction of the hand-eye information (an eigenvector).
 
@@ -349,17 +349,27 @@ class ObservabilityReport:
         """No unobservable and no weak direction."""
         return not self.unobservable and not self.weak
 
+    def unobservable_translation_basis(self) -> np.ndarray:
+        """(3, k) orthonormal basis (in H) of the unobservable pure translations."""
+        t = [d.translation_axis for d in self.unobservable if d.kind == "translation"]
+        if not t:
+            return np.zeros((3, 0))
+        U, s, _ = np.linalg.svd(np.array(t).T, full_matrices=False)
+        return U[:, s > 1e-6]
+
     def suggested_fixes(self) -> list:
-        """Components whose fixing (``fixed=``) removes each unobservable direction: the
-        translation component along a direction aligned with an axis of H, yaw for a rotation
-        about H z."""
+        """Components whose fixing (``fixed=``) removes the unobservable directions, when axes
+        of H do: for k unobservable translations, the k translation components that best
+        span them (kept if they do so well); yaw for a rotation about H z."""
         out = []
+        N = self.unobservable_translation_basis()
+        k = N.shape[1]
+        if k:
+            axes = sorted(np.argsort(-np.linalg.norm(N, axis=1))[:k])
+            if abs(np.linalg.det(N[axes])) >= 0.5:
+                out += ["t" + "xyz"[i] for i in axes]
         for d in self.unobservable:
-            if d.kind == "translation":
-                k = int(np.argmax(np.abs(d.translation_axis)))
-                if abs(d.translation_axis[k]) >= math.cos(math.radians(10.0)):
-                    out.append("t" + "xyz"[k])
-            elif d.kind == "rotation" and abs(d.rotation_axis[2]) >= math.cos(math.radians(10)):
+            if d.kind == "rotation" and abs(d.rotation_axis[2]) >= math.cos(math.radians(10)):
                 out.append("yaw_deg")
         return out
 
@@ -550,8 +560,20 @@ def analyze_observability(info, X_CH, mode: str = "eye_in_hand", X_BE_list=None,
     motion = None if Y is None or len(Y) < 2 else check_robot_motions(X_BE_list, mode)
 
     messages = []
+    unobs_t = [d for d in dirs if d.status == "unobservable" and d.kind == "translation"]
+    if len(unobs_t) >= 2:
+        # A whole plane or space of translations: one message instead of arbitrary basis
+        # vectors.
+        if len(unobs_t) == 3:
+            what = f"the camera position in {frame} (translation along every axis)"
+        else:
+            n = np.cross(unobs_t[0].translation_axis, unobs_t[1].translation_axis)
+            what = f"translation perpendicular to {axis_name(n, frame)}"
+        cause = _cause(unobs_t[0], motion, frame)
+        messages.append(f"{what} is unobservable: "
+                        + (cause if cause else "the motions do not determine it"))
     for d in dirs:
-        if d.status == "ok":
+        if d.status == "ok" or (len(unobs_t) >= 2 and d in unobs_t):
             continue
         cause = _cause(d, motion, frame)
         if d.status == "unobservable":
