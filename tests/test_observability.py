@@ -159,6 +159,24 @@ def test_no_rotation_is_named_as_the_cause():
     assert rep.suggested_fixes() == ["tx", "ty", "tz"]
 
 
+def test_recording_observability_works_without_a_hand_eye_estimate():
+    """From the samples alone, also when the classical solvers refuse them (parallel axes)."""
+    rng = np.random.default_rng(12)
+    X_BE = scara_poses(rng, 20)
+    rep, X_CH, X_FT = ob.recording_observability(X_BE, measure(rng, X_BE), SR, ST)
+    truth = ob.observability_report(X_BE, X_CE, X_BT, SR, ST)
+    assert [d.name for d in rep.unobservable] == ["translation along E z"]
+    assert rep.messages == truth.messages
+    # The observable part of the linearization point is the ML estimate: rotation within 0.5°,
+    # and the σ of the other directions within 20 % of those at the truth.
+    assert np.degrees(np.linalg.norm(tangent_error(X_CE, X_CH)[:3])) < 0.5
+    np.testing.assert_allclose(rep.rotation_std_deg, truth.rotation_std_deg, rtol=0.2)
+    np.testing.assert_allclose(rep.translation_std[:2], truth.translation_std[:2], rtol=0.2)
+    X_BE = general_poses(rng, 10)
+    rep, X_CH, _ = ob.recording_observability(X_BE, measure(rng, X_BE), SR, ST)
+    assert rep.ok and np.linalg.norm(tangent_error(X_CE, X_CH)[3:]) < 0.005
+
+
 def test_analyze_observability_rejects_bad_input():
     info = ob.information_matrix(general_poses(np.random.default_rng(6), 5), X_CE, X_BT, SR, ST)
     with pytest.raises(ValueError, match=r"info: expected shape \(12, 12\)"):

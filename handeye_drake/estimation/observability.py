@@ -978,6 +978,67 @@ def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8):
     return chart, r, H, njev
 
 
+def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init, fixed, mode):
+    """The best local ML fit (over the starting points) with ``fixed`` held; the information
+    may be singular (unobservable directions then keep their starting values)."""
+    Y = robot_side_poses(X_BE_list, mode)
+    X_CT = as_transform_list(X_CT_list, "X_CT_list", rigid=(noise_model == "so3"))
+    check_same_length(list(Y), "X_BE_list", X_CT, "X_CT_list")
+    if len(Y) < 3:
+        raise ValueError(f"X_BE_list, X_CT_list: need at least 3 samples, got {len(Y)}")
+    R_CTm, R_CTp = _measured_rotations(X_CT, "X_CT_list", noise_model)
+    data = (R_CTm, R_CTp, np.array([x[:3, 3] for x in X_CT]), Y[:, :3, :3], Y[:, :3, 3])
+    X_CT_p = [make_transform(R, x[:3, 3]) for R, x in zip(R_CTp, X_CT)]
+    if X_CH_init is None:
+        starts = [inverse(X) for X in _initial_guesses(Y, X_CT_p, fixed)]
+    else:
+        starts = [as_transform(X_CH_init, "X_CH_init")]
+
+    best = None
+    for X_CH0 in starts:
+        X_FT0 = (inverse(Y[0]) @ inverse(X_CH0) @ X_CT_p[0] if X_FT_init is None
+                 else as_transform(X_FT_init, "X_FT_init"))
+        try:
+            chart, r, H, njev = _fit_fixed(_FixedChart(inverse(X_CH0), X_FT0, fixed), data,
+                                           noise_model, sr, st)
+        except ValueError:
+            if len(starts) == 1:
+                raise
+            continue
+        if best is None or r @ r < best[1] @ best[1]:
+            best = (chart, r, H, njev)
+    if best is None:
+        raise ValueError("X_CH_init: no starting point led to a finite fit")
+    return (*best, data)
+
+
+def recording_observability(X_BE_list, X_CT_list, rotation_sigma: float,
+                            translation_sigma: float, mode: str = "eye_in_hand",
+                            noise_model: str = "so3", X_CH_init=None,
+                            **kwargs) -> tuple[ObservabilityReport, np.ndarray, np.ndarray]:
+    """Observability report of a recording, even when it does not determine the hand-eye pose.
+
+    The report is evaluated at the local ML fit of the samples (started from ``X_CH_init``, or
+    as ``refine_ml_poses_fixed`` starts without one). Where the data does not determine a
+    direction the fit keeps its starting value there (zero for the translation along a SCARA's
+    axis), which moves the linearization point by up to the camera offset: the named
+    directions are exact (they depend on the robot motions only), the σ of the others are then
+    approximate. Keyword arguments go to ``analyze_observability``.
+
+    Returns:
+        (report, X_CH, X_FT): the ``ObservabilityReport`` and the linearization point
+        (X_CE, X_BT eye-in-hand; X_CB, X_ET eye-to-hand).
+    """
+    mode = check_mode(mode)
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    chart, *_ = _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, None, {},
+                             mode)
+    X_HC, X_FT = chart.poses(np.zeros(chart.n))
+    X_CH = inverse(X_HC)
+    return (observability_report(X_BE_list, X_CH, X_FT, sr, st, mode, noise_model, **kwargs),
+            X_CH, X_FT)
+
+
 def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float,
                           translation_sigma: float, noise_model: str = "so3", X_FT_init=None,
                           fixed=None, mode: str = "eye_in_hand") -> PartialMLResult:
@@ -1013,35 +1074,8 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
     mode = check_mode(mode)
     sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
     fixed = parse_fixed(fixed) if isinstance(fixed, str) else check_fixed(fixed)
-    Y = robot_side_poses(X_BE_list, mode)
-    X_CT = as_transform_list(X_CT_list, "X_CT_list", rigid=(noise_model == "so3"))
-    check_same_length(list(Y), "X_BE_list", X_CT, "X_CT_list")
-    if len(Y) < 3:
-        raise ValueError(f"X_BE_list, X_CT_list: need at least 3 samples, got {len(Y)}")
-    R_CTm, R_CTp = _measured_rotations(X_CT, "X_CT_list", noise_model)
-    data = (R_CTm, R_CTp, np.array([x[:3, 3] for x in X_CT]), Y[:, :3, :3], Y[:, :3, 3])
-    X_CT_p = [make_transform(R, x[:3, 3]) for R, x in zip(R_CTp, X_CT)]
-    if X_CH_init is None:
-        starts = [inverse(X) for X in _initial_guesses(Y, X_CT_p, fixed)]
-    else:
-        starts = [as_transform(X_CH_init, "X_CH_init")]
-
-    best = None
-    for X_CH0 in starts:
-        X_FT0 = (inverse(Y[0]) @ inverse(X_CH0) @ X_CT_p[0] if X_FT_init is None
-                 else as_transform(X_FT_init, "X_FT_init"))
-        try:
-            chart, r, H, njev = _fit_fixed(_FixedChart(inverse(X_CH0), X_FT0, fixed), data,
-                                           noise_model, sr, st)
-        except ValueError:
-            if len(starts) == 1:
-                raise
-            continue
-        if best is None or r @ r < best[1] @ best[1]:
-            best = (chart, r, H, njev)
-    if best is None:
-        raise ValueError("X_CH_init: no starting point led to a finite fit")
-    chart, r, H, njev = best
+    chart, r, H, njev, data = _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model,
+                                           X_FT_init, fixed, mode)
     x0 = np.zeros(chart.n)
     X_HC, X_FT = chart.poses(x0)
     X_CH = inverse(X_HC)
