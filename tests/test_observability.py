@@ -170,6 +170,9 @@ def test_recording_observability_works_without_a_hand_eye_estimate():
     # The observable part of the linearization point is the ML estimate: rotation within 0.5°,
     # and the σ of the other directions within 20 % of those at the truth.
     assert np.degrees(np.linalg.norm(tangent_error(X_CE, X_CH)[:3])) < 0.5
+    # Where the data is silent the point stays at the start (zero offset along E z).
+    assert abs(inverse(X_CH)[2, 3]) < 0.01
+    np.testing.assert_allclose(inverse(X_CH)[:2, 3], X_EC[:2, 3], atol=0.003)
     np.testing.assert_allclose(rep.rotation_std_deg, truth.rotation_std_deg, rtol=0.2)
     np.testing.assert_allclose(rep.translation_std[:2], truth.translation_std[:2], rtol=0.2)
     X_BE = general_poses(rng, 10)

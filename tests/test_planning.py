@@ -206,6 +206,33 @@ def test_plan_command_from_a_recording(tmp_path, capsys):
         np.testing.assert_allclose(step["X_BE_xyz"], poses.poses[k][:3, 3], atol=1e-6)
 
 
+def test_plan_command_on_a_scara_style_recording_picks_poses_that_fix_its_height(tmp_path,
+                                                                                  capsys):
+    """Every recorded rotation about the vertical: the camera height on the flange is
+    unobservable; the plan still runs (from the fit of the rest) and its first tilted pose
+    makes the height observable."""
+    rng = np.random.default_rng(10)
+    R_down = rotation_exp([math.pi, 0.0, 0.0])
+    recorded = [make_transform(rotation_exp([0.0, 0.0, rng.uniform(-1, 1)]) @ R_down,
+                               [0.5, 0.05, 0.45] + rng.uniform(-0.1, 0.1, 3)) for _ in range(12)]
+    X_CT = [apply_pose_noise(X_CE @ inverse(x) @ X_BT, rng.normal(size=12), "so3", SR, ST)
+            for x in recorded]
+    _tum(tmp_path / "robot.tum", recorded)
+    _tum(tmp_path / "camera.tum", X_CT)
+    out = tmp_path / "out"
+    assert plan_app.main(["--robot", str(tmp_path / "robot.tum"), "--camera",
+                          str(tmp_path / "camera.tum"), "--around", _pose_arg(recorded[0]),
+                          "--max-angle", "20", "--num-candidates", "60", "--n", "2",
+                          "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert ("translation along the rotation axis (E z) is unobservable: every rotation is about "
+            "parallel axes — typical of 4-DOF/SCARA robots") in text
+    result = json.loads((out / "plan.json").read_text())
+    assert result["std_now"]["translation_m"][2] is None
+    assert result["next_poses"][0]["translation_std_m"][2] < 0.01
+    assert result["observability"]["suggested_fixes"] == ["tz"]
+
+
 def test_plan_command_from_guesses_and_candidate_file(tmp_path, capsys):
     C = _candidates(9, 25)
     _tum(tmp_path / "cands.tum", C)

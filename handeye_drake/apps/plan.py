@@ -29,12 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..estimation.ml import refine_ml_poses
-from ..estimation.observability import (MODES, HOLDER_FRAME, observability_report, parse_fixed,
-                                        refine_ml_poses_fixed)
+from ..estimation.observability import (MODES, HOLDER_FRAME, UnobservableError,
+                                        observability_report, parse_fixed, pose_residuals,
+                                        recording_observability, refine_ml_poses_fixed)
 from ..estimation.planning import plan_next_poses, sample_candidate_poses
 from ..estimation.se3 import inverse, make_transform, quat_wxyz, rotation_from_quat_wxyz
-from ..estimation.solvers import calibrate_hand_eye
 from ..recorded.align import align_streams
 from ..recorded.formats import FORMATS, read_poses
 from ..vision.camera_model import CameraIntrinsics
@@ -104,25 +103,19 @@ def _estimate_from_recording(args, fixed, mode):
                         translation_scale=args.translation_scale)
     aligned = align_streams(robot, camera, args.time_offset)
     X_BE, X_CT = list(aligned.X_BE), list(aligned.X_CT)
-    Y_inv = X_BE if mode == "eye_in_hand" else [inverse(X) for X in X_BE]  # what plays X_BE
     sr = math.radians(args.rotation_sigma_deg or DEFAULT_ROTATION_SIGMA_DEG)
     st = args.translation_sigma or DEFAULT_TRANSLATION_SIGMA
     guess = None if args.hand_eye is None else inverse(parse_pose(args.hand_eye, "--hand-eye"))
 
     def fit(sr, st):
-        if fixed:
+        try:
             r = refine_ml_poses_fixed(X_BE, X_CT, guess, sr, st, fixed=fixed, mode=mode)
             return r.X_CH, r.X_FT, r.residuals
-        X0 = guess
-        if X0 is None:
-            try:
-                X0 = inverse(calibrate_hand_eye(Y_inv, X_CT, "daniilidis", pairs="consecutive"))
-            except ValueError as e:
-                raise ValueError(f"{args.camera}: the recording does not determine the hand-eye "
-                                 f"pose ({e}); give a rough --hand-eye to plan from, or --fix "
-                                 "the unobservable components") from None
-        r = refine_ml_poses(Y_inv, X_CT, X0, sr, st)
-        return r.X_CE, r.X_BT, r.residuals
+        except UnobservableError:
+            # The recording leaves part of the hand-eye pose undetermined (e.g. a SCARA's
+            # height): plan from the fit of the rest — choosing poses that fix it is the point.
+            _, X_CH, X_FT = recording_observability(X_BE, X_CT, sr, st, mode, X_CH_init=guess)
+            return X_CH, X_FT, pose_residuals(X_BE, X_CT, X_CH, X_FT, mode)
 
     X_CH, X_FT, res = fit(sr, st)
     note = "given"
@@ -140,7 +133,6 @@ def _estimate_from_recording(args, fixed, mode):
             dropped = int((~keep).sum())
             X_BE = [x for x, k in zip(X_BE, keep) if k]
             X_CT = [x for x, k in zip(X_CT, keep) if k]
-            Y_inv = [x for x, k in zip(Y_inv, keep) if k]
             dof = max(3 * len(X_BE) - 6, 1)
             sr_hat = math.sqrt(float(np.sum(rot[keep] ** 2)) / dof)
             st_hat = math.sqrt(float(np.sum(tra[keep] ** 2)) / dof)
@@ -225,7 +217,11 @@ def run_plan(args) -> int:
     report = None
     if len(samples) >= 2:
         report = observability_report(samples, X_CH, X_FT, sr, st, mode)
+        resolved = {f.removesuffix("_deg") for f in report.suggested_fixes()} <= set(fixed)
         for line in report.lines():
+            if resolved and report.suggested_fixes() and line.lstrip().startswith("fix "):
+                line = f"    resolved by --fix {','.join(fixed)}: the other components are " \
+                    "calibrated"
             print("  " + line)
     print(f"  now:     σ rotation about {H} x,y,z {_fmt_std(plan.rotation_std_deg[0], 1, '.3g')} "
           f"deg, translation {_fmt_std(plan.translation_std[0], 1000, '.3g')} mm "

@@ -90,6 +90,15 @@ _MAX_CHECK_SAMPLES = 60
 _MAX_FIXED_TRANSLATION = 10.0
 
 
+class UnobservableError(ValueError):
+    """The data does not determine some free component of the hand-eye pose; ``report`` (an
+    ``ObservabilityReport``) names the directions."""
+
+    def __init__(self, message: str, report: "ObservabilityReport"):
+        super().__init__(message)
+        self.report = report
+
+
 def check_mode(mode) -> str:
     if mode not in MODES:
         raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
@@ -949,17 +958,28 @@ def _initial_guesses(Y, X_CT, fixed) -> list:
     return guesses
 
 
-def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8):
+def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8, t_prior=None):
+    """LM in the chart, re-centred until the step vanishes. ``t_prior`` = (t0, σ): extra
+    residuals (t_HC − t0)/σ on the free translation components, which pin directions the data
+    leaves undetermined (otherwise LM may wander along them) and barely move the others."""
     njev = 0
     for _ in range(max_rounds):
+        def prior(x, c):
+            if t_prior is None:
+                return np.zeros(0), np.zeros((0, c.n))
+            free = c.t_free
+            r = (c.t_c[free] + x[:len(free)] - t_prior[0][free]) / t_prior[1]
+            return r, np.eye(len(free), c.n) / t_prior[1]
+
         def fun(x, c=chart):
             X_HC, X_FT = c.poses(x)
-            return _pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st)[0]
+            return np.concatenate([_pose_terms((inverse(X_HC), X_FT), data, noise_model, sr,
+                                               st)[0], prior(x, c)[0]])
 
         def jac(x, c=chart):
             X_HC, X_FT = c.poses(x)
-            return _pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st)[1] @ \
-                c.tangent_map(x)
+            return np.vstack([_pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st)[1]
+                              @ c.tangent_map(x), prior(x, c)[1]])
 
         sol = least_squares(fun, np.zeros(chart.n), jac=jac, method="lm", xtol=1e-14,
                             ftol=1e-14, gtol=1e-14, max_nfev=100 * chart.n)
@@ -978,7 +998,8 @@ def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8):
     return chart, r, H, njev
 
 
-def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init, fixed, mode):
+def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init, fixed, mode,
+                 translation_prior_std=None):
     """The best local ML fit (over the starting points) with ``fixed`` held; the information
     may be singular (unobservable directions then keep their starting values)."""
     Y = robot_side_poses(X_BE_list, mode)
@@ -999,8 +1020,10 @@ def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init
         X_FT0 = (inverse(Y[0]) @ inverse(X_CH0) @ X_CT_p[0] if X_FT_init is None
                  else as_transform(X_FT_init, "X_FT_init"))
         try:
+            t_prior = None if translation_prior_std is None else \
+                (inverse(X_CH0)[:3, 3], translation_prior_std)
             chart, r, H, njev = _fit_fixed(_FixedChart(inverse(X_CH0), X_FT0, fixed), data,
-                                           noise_model, sr, st)
+                                           noise_model, sr, st, t_prior=t_prior)
         except ValueError:
             if len(starts) == 1:
                 raise
@@ -1010,6 +1033,19 @@ def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init
     if best is None:
         raise ValueError("X_CH_init: no starting point led to a finite fit")
     return (*best, data)
+
+
+def pose_residuals(X_BE_list, X_CT_list, X_CH, X_FT, mode: str = "eye_in_hand") -> np.ndarray:
+    """(K, 2) per sample: [angle between measured and predicted R_CT (deg), ‖measured −
+    predicted t_CT‖ (m)] for the prediction X_CH · Y_k · X_FT (``robot_side_poses``)."""
+    Y = robot_side_poses(X_BE_list, mode)
+    X_CT = as_transform_list(X_CT_list, "X_CT_list", rigid=False)
+    check_same_length(list(Y), "X_BE_list", X_CT, "X_CT_list")
+    if not X_CT:
+        return np.zeros((0, 2))
+    _, R_CTp = _measured_rotations(X_CT, "X_CT_list", "so3")
+    data = (R_CTp, R_CTp, np.array([x[:3, 3] for x in X_CT]), Y[:, :3, :3], Y[:, :3, 3])
+    return _pose_residual_summary((as_transform(X_CH, "X_CH"), as_transform(X_FT, "X_FT")), data)
 
 
 def recording_observability(X_BE_list, X_CT_list, rotation_sigma: float,
@@ -1023,7 +1059,9 @@ def recording_observability(X_BE_list, X_CT_list, rotation_sigma: float,
     direction the fit keeps its starting value there (zero for the translation along a SCARA's
     axis), which moves the linearization point by up to the camera offset: the named
     directions are exact (they depend on the robot motions only), the σ of the others are then
-    approximate. Keyword arguments go to ``analyze_observability``.
+    approximate. (A 1 m prior on the camera offset pins the undetermined directions; its pull
+    on the determined ones is ~(σ_t / 1 m)², negligible.) Keyword arguments go to
+    ``analyze_observability``.
 
     Returns:
         (report, X_CH, X_FT): the ``ObservabilityReport`` and the linearization point
@@ -1031,8 +1069,9 @@ def recording_observability(X_BE_list, X_CT_list, rotation_sigma: float,
     """
     mode = check_mode(mode)
     sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    # A 1 m prior on the camera offset keeps unobservable translations at their start.
     chart, *_ = _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, None, {},
-                             mode)
+                             mode, translation_prior_std=1.0)
     X_HC, X_FT = chart.poses(np.zeros(chart.n))
     X_CH = inverse(X_HC)
     return (observability_report(X_BE_list, X_CH, X_FT, sr, st, mode, noise_model, **kwargs),
@@ -1067,9 +1106,9 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
         ``PartialMLResult``.
 
     Raises:
-        ValueError: as ``ml.refine_ml_poses``; a bad ``fixed``; or free components that the
-            data still does not determine (the message names them, from
-            ``analyze_observability``).
+        ValueError: as ``ml.refine_ml_poses``; a bad ``fixed``.
+        UnobservableError (a ValueError): free components that the data still does not
+            determine (the message names them; ``.report`` is the ``ObservabilityReport``).
     """
     mode = check_mode(mode)
     sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
@@ -1087,11 +1126,11 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
         report = analyze_observability(H.T @ H, X_CH, mode, X_BE_list=X_BE_list, X_FT=X_FT)
         still = [d.name for d in report.unobservable] or ["(numerically) some direction"]
         free = [c for c in COMPONENTS if c not in fixed]
-        raise ValueError(f"fixed: with {', '.join(sorted(fixed)) or 'nothing'} fixed, the "
-                         f"free components ({', '.join(free)}) are still not determined by the "
-                         f"data: {'; '.join(still)} is unobservable"
-                         + (f" (fix {' and '.join(report.suggested_fixes())})"
-                            if report.suggested_fixes() else ""))
+        raise UnobservableError(
+            f"fixed: with {', '.join(sorted(fixed)) or 'nothing'} fixed, the free components "
+            f"({', '.join(free)}) are still not determined by the data: {'; '.join(still)} is "
+            "unobservable" + (f" (fix {' and '.join(report.suggested_fixes())})"
+                              if report.suggested_fixes() else ""), report)
     cov_x = np.linalg.inv(info_x)
     cov_x = 0.5 * (cov_x + cov_x.T)
     full = T @ cov_x @ T.T

@@ -246,24 +246,27 @@ def _random_offsets(rng, n, radius):
     return d * (radius * rng.uniform(size=n) ** (1.0 / 3.0))[:, None]
 
 
-def _aim(X_BE, X_EC, p_BT):
-    """The pose rotated about the camera centre so the optical axis points at p_BT."""
+def _rotation_between(a, b):
+    """The smallest rotation taking unit vector a to unit vector b (None if opposite)."""
+    c = np.cross(a, b)
+    s, cos = np.linalg.norm(c), float(a @ b)
+    if s < 1e-12:
+        return np.eye(3) if cos > 0 else None
+    return rotation_exp(c / s * math.atan2(s, cos))
+
+
+def _aim(X_BE, X_EC, p_BT, d_C):
+    """The pose turned about the camera centre so that the target point is seen in the camera
+    direction d_C (unit, in C) — where it was seen from the centre pose."""
     X_BC = X_BE @ X_EC
-    z = X_BC[:3, 2]
     d = p_BT - X_BC[:3, 3]
     norm = np.linalg.norm(d)
     if norm < 1e-9:
         return None
-    d = d / norm
-    c = np.cross(z, d)
-    s, cos = np.linalg.norm(c), float(z @ d)
-    if s < 1e-12:
-        if cos > 0:
-            return X_BE
+    R = _rotation_between(X_BC[:3, :3] @ d_C, d / norm)
+    if R is None:
         return None
-    R = rotation_exp(c / s * math.atan2(s, cos))
-    X_BC_new = make_transform(R @ X_BC[:3, :3], X_BC[:3, 3])
-    return X_BC_new @ inverse(X_EC)
+    return make_transform(R @ X_BC[:3, :3], X_BC[:3, 3]) @ inverse(X_EC)
 
 
 def sample_candidate_poses(X_BE_center, p_FT, n: int, max_angle_deg: float, max_distance: float,
@@ -277,9 +280,10 @@ def sample_candidate_poses(X_BE_center, p_FT, n: int, max_angle_deg: float, max_
 
     Each candidate X_BE differs from ``X_BE_center`` by a rotation of at most ``max_angle_deg``
     and a flange displacement of at most ``max_distance``. Eye-in-hand with ``X_HC`` (= X_EC):
-    after a random rotation and displacement the camera is turned about its own centre to look
-    at the target point ``p_FT`` (= p_BT), so the target stays centred in the image and the
-    candidates differ mainly in viewpoint and roll — what the hand-eye information needs.
+    after a random rotation and displacement the camera is turned about its own centre so that
+    it sees the target point ``p_FT`` (= p_BT) in the same direction as from the centre pose
+    (the target stays where it was in the image), so the candidates differ in viewpoint and
+    roll — what the hand-eye information needs.
     With ``intrinsics``, a candidate is kept only when every target point ``p_FQ`` (default
     ``p_FT`` alone) projects in front of the camera, inside the image by ``margin_px``.
 
@@ -337,6 +341,12 @@ def sample_candidate_poses(X_BE_center, p_FT, n: int, max_angle_deg: float, max_
     if attempts < n:
         raise ValueError(f"max_attempts: must be ≥ n = {n}, got {max_attempts!r}")
 
+    if mode == "eye_in_hand" and X_HC is not None:
+        X_BC0 = X_c @ X_HC
+        d_C = X_BC0[:3, :3].T @ (p - X_BC0[:3, 3])
+        if np.linalg.norm(d_C) < 1e-9:
+            raise ValueError("p_FT: the target point is at the camera centre of the centre pose")
+        d_C /= np.linalg.norm(d_C)
     out = []
     rejected = {"aim": 0, "angle": 0, "distance": 0, "view": 0}
     batch = 64
@@ -349,7 +359,7 @@ def sample_candidate_poses(X_BE_center, p_FT, n: int, max_angle_deg: float, max_
         for w, d in zip(rv, dp):
             X = make_transform(rotation_exp(w) @ X_c[:3, :3], X_c[:3, 3] + d)
             if mode == "eye_in_hand" and X_HC is not None:
-                X = _aim(X, X_HC, p)
+                X = _aim(X, X_HC, p, d_C)
                 if X is None:
                     rejected["aim"] += 1
                     continue
