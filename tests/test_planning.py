@@ -65,7 +65,8 @@ def test_planner_beats_every_random_choice_and_exchange_improves_greedy():
     random = [_log_det(C[rng.choice(len(C), 5, replace=False)]) for _ in range(50)]
     assert best > max(random)
     # Predicted σ (data only) after the 5 poses, row by row: undetermined with fewer than 3.
-    assert np.all(np.isinf(plan.rotation_std_deg[:3])) and np.all(np.isinf(plan.translation_std[:3]))
+    assert np.all(np.isinf(plan.rotation_std_deg[:3]))
+    assert np.all(np.isinf(plan.translation_std[:3]))
     rot, tra = ob.hand_eye_std(ob.information_matrix(list(C[plan.indices]), X_CE, X_BT, SR, ST),
                                X_CE)
     np.testing.assert_allclose(plan.rotation_std_deg[-1], rot, rtol=1e-9)

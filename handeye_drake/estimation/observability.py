@@ -50,7 +50,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .manifold import inverse_tangent_jacobian
-from .ml import (NOISE_MODELS, _check_noise, _measured_rotations, _pose_residual_summary,
+from .ml import (_check_noise, _measured_rotations, _pose_residual_summary,
                  _pose_terms, left_jacobian, pose_jacobians)
 from .se3 import inverse, make_transform, rotation_exp, rotation_from_rpy, rotation_log, rpy
 from .solvers import calibrate_hand_eye
@@ -393,11 +393,11 @@ class ObservabilityReport:
                    f"{self.frame} x, y, z: [{tra}] mm")
         if self.motion is not None:
             m = self.motion
+            common = axis_name(m.common_axis, self.frame) if m.common_axis is not None else "—"
             out.append(f"  robot motions: {m.num_motions} between {m.num_samples} samples rotate "
                        f"≥ 0.5° (largest {m.max_angle_deg:.1f}°, median "
                        f"{m.median_angle_deg:.1f}°); axis spread {m.axis_spread_deg:.2f}° about "
-                       f"{axis_name(m.common_axis, self.frame) if m.common_axis is not None else '—'}"
-                       f", axis condition number {m.axis_condition_number:.3g}")
+                       f"{common}, axis condition number {m.axis_condition_number:.3g}")
         out += [f"  {msg}" for msg in self.messages] or ["  every direction is well determined"]
         return out
 
@@ -589,7 +589,8 @@ def analyze_observability(info, X_CH, mode: str = "eye_in_hand", X_BE_list=None,
             name = d.name
             if (motion is not None and motion.parallel_axes and d.kind == "translation"
                     and abs(float(d.translation_axis @ motion.common_axis)) >= 0.98):
-                name = f"translation along the rotation axis ({axis_name(d.translation_axis, frame)})"
+                name = ("translation along the rotation axis "
+                        f"({axis_name(d.translation_axis, frame)})")
             msg = f"{name} is unobservable" + (f": {cause}" if cause else
                                               ": the motions do not determine it")
         else:
@@ -862,7 +863,8 @@ class _FixedChart:
             R = rotation_from_rpy(a)
         else:
             R = rotation_exp(xr) @ self.R_c
-        X_FT = make_transform(rotation_exp(xf[:3]) @ self.X_FT_c[:3, :3], self.X_FT_c[:3, 3] + xf[3:])
+        X_FT = make_transform(rotation_exp(xf[:3]) @ self.X_FT_c[:3, :3],
+                              self.X_FT_c[:3, 3] + xf[3:])
         return make_transform(R, t), X_FT
 
     def angles(self, x):
