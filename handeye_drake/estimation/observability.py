@@ -1145,14 +1145,14 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
             cov_HC[3 + i, :] = cov_HC[:, 3 + i] = 0.0
     d = np.sqrt(np.maximum(np.diag(cov_HC), 0.0))
     angles = rpy(X_HC[:3, :3])
-    params = dict(zip(COMPONENTS, [*X_HC[:3, 3], *angles]))
+    params = {c: float(v) for c, v in zip(COMPONENTS, [*X_HC[:3, 3], *angles])}
     E = _rpy_rate_matrix(angles)
     if abs(math.cos(angles[1])) > 1e-9:
         cov_rpy = np.linalg.solve(E, np.linalg.solve(E, cov_HC[:3, :3]).T)
         rpy_std = np.sqrt(np.maximum(np.diag(cov_rpy), 0.0))
     else:
         rpy_std = np.array([math.inf, float(d[1]), math.inf])
-    std = dict(zip(COMPONENTS, [*d[3:], *rpy_std]))
+    std = {c: float(v) for c, v in zip(COMPONENTS, [*d[3:], *rpy_std])}
     for c in fixed:
         std[c] = 0.0
     return PartialMLResult(mode=mode, frame=HOLDER_FRAME[mode], X_CH=X_CH, X_HC=X_HC, X_FT=X_FT,
