@@ -164,11 +164,11 @@ def run_plan(args) -> int:
             raise ValueError(f"--{name.replace('_', '-')}: must be finite and > 0, got {v}")
 
     if args.camera:
-        X_CH, X_FT, samples, sr, st, (source, noise_note) = _estimate_from_recording(
-            args, fixed, mode)
         if args.target is not None:
             raise ValueError("--target: the target pose comes from the recording (--camera); "
                              "drop --target")
+        X_CH, X_FT, samples, sr, st, (source, noise_note) = _estimate_from_recording(
+            args, fixed, mode)
     else:
         if args.hand_eye is None or args.target is None:
             raise ValueError("--hand-eye and --target: without --camera, planning needs a rough "
