@@ -15,8 +15,7 @@ in the base). Poses on the command line are ``x,y,z,qx,qy,qz,qw`` (metres, TUM/R
 order, scalar last). Eye-to-hand (``--mode eye_to_hand``): ``--hand-eye`` is X_BC (the camera
 in the base) and ``--target`` the target's position on the flange (in E).
 
-The command is exposed as ``add_plan_parser(subparsers)`` / ``run_plan(args)`` for the
-project CLI, and runs alone with ``python -m handeye_drake.apps.plan``.
+The command is ``add_parser(subparsers)`` / ``run_plan(args)`` of the project CLI.
 """
 
 from __future__ import annotations
@@ -24,11 +23,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
+from .outputs import prepare_output_dir
 from ..estimation.observability import (MODES, HOLDER_FRAME, UnobservableError,
                                         observability_report, parse_fixed, pose_residuals,
                                         recording_observability, refine_ml_poses_fixed)
@@ -149,6 +147,7 @@ def run_plan(args) -> int:
     mode = args.mode
     H = HOLDER_FRAME[mode]
     fixed = parse_fixed(args.fix) if args.fix else {}
+    out = prepare_output_dir(args.out, "plan", args.force)
     if args.n < 1:
         raise ValueError(f"--n: must be ≥ 1, got {args.n}")
     if args.camera and not args.robot:
@@ -207,8 +206,6 @@ def run_plan(args) -> int:
     plan = plan_next_poses(candidates, X_CH, X_FT, samples, sr, st, n=args.n, mode=mode,
                            visibility=visibility, fixed=tuple(fixed))
     X_HC = inverse(X_CH)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     hc = f"X_{H}C"
     print(f"planning {args.n} poses ({mode}) among {len(candidates)} candidates; estimates from "
           f"{source}; camera noise {math.degrees(sr):.3g}° / {1000 * st:.3g} mm ({noise_note})")
@@ -226,8 +223,8 @@ def run_plan(args) -> int:
     print(f"  now:     σ rotation about {H} x,y,z {_fmt_std(plan.rotation_std_deg[0], 1, '.3g')} "
           f"deg, translation {_fmt_std(plan.translation_std[0], 1000, '.3g')} mm "
           f"({len(samples)} samples)")
-    lines = [f"# next poses to record (X_BE, end-effector in base), best first; written by "
-             f"handeye-drake plan", "# rank tx ty tz qx qy qz qw"]
+    lines = ["# next poses to record (X_BE, end-effector in base), best first; written by "
+             "handeye-drake plan", "# rank tx ty tz qx qy qz qw"]
     steps = []
     for k, i in enumerate(plan.indices, start=1):
         X = np.asarray(candidates[i])
@@ -242,9 +239,9 @@ def run_plan(args) -> int:
                       "translation_std_m": [x if math.isfinite(x) else None
                                             for x in t.tolist()],
                       "log_det_gain": plan.log_det_gain[k - 1]})
-    tum = out / "next_poses.tum"
+    tum = out.path("next_poses.tum")
     tum.write_text("\n".join(lines) + "\n")
-    js = out / "plan.json"
+    js = out.path("plan.json")
     js.write_text(json.dumps({
         "mode": mode, "num_candidates": len(candidates), "num_samples": len(samples),
         "rotation_sigma_rad": sr, "translation_sigma_m": st, "fixed": fixed,
@@ -255,11 +252,12 @@ def run_plan(args) -> int:
                                       for x in plan.translation_std[0].tolist()]},
         "observability": None if report is None else report.to_dict(),
         "next_poses": steps}, indent=2) + "\n")
+    out.finish([tum, js])
     print(f"wrote: {tum}, {js}")
     return 0
 
 
-def add_plan_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> argparse.ArgumentParser:
     """Adds the ``plan`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser(
         "plan", help="suggest the next robot poses to record (D-optimal design)",
@@ -312,21 +310,12 @@ def add_plan_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=MODES, default="eye_in_hand",
                    help="eye_in_hand (camera on the flange, default) or eye_to_hand")
     p.add_argument("--n", type=int, default=5, help="number of poses to suggest (default 5)")
-    p.add_argument("--out", default="out/plan", metavar="DIR", help="output directory")
+    p.add_argument("--out", default="out/plan", metavar="DIR",
+                   help="output directory (default out/plan); an existing one must be empty or "
+                        "hold this command's earlier output")
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that is not this command's output "
+                        "(never overwriting files the tool did not write)")
     p.set_defaults(func=run_plan)
     return p
 
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="handeye-drake")
-    add_plan_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["plan", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return args.func(args)
-    except ValueError as e:
-        print("handeye-drake: error: " + " ".join(str(e).split()), file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

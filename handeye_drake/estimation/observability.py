@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .manifold import inverse_tangent_jacobian
+from .se3 import inverse_tangent_jacobian
 from .ml import (_check_noise, _measured_rotations, _pose_residual_summary,
                  _pose_terms, left_jacobian, pose_jacobians)
 from .se3 import inverse, make_transform, rotation_exp, rotation_from_rpy, rotation_log, rpy

@@ -5,7 +5,7 @@ components (consistency over seeded runs), and the ``--fix`` parser."""
 
 import math
 
-from conftest import tangent_error
+from tests.fixtures import tangent_error
 import numpy as np
 import pytest
 from scipy.stats import chi2

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from handeye_drake.apps import plan as plan_app
+from handeye_drake.apps.cli import main as cli_main
 from handeye_drake.estimation import observability as ob
 from handeye_drake.estimation import planning as pl
 from handeye_drake.estimation.se3 import (inverse, make_transform, quat_wxyz, rotation_exp,
@@ -186,7 +186,7 @@ def test_plan_command_from_a_recording(tmp_path, capsys):
     _tum(tmp_path / "camera.tum", X_CT)
     out = tmp_path / "out"
     fx = CAMERA.alpha_u
-    assert plan_app.main(["--robot", str(tmp_path / "robot.tum"), "--camera",
+    assert cli_main(["plan", "--robot", str(tmp_path / "robot.tum"), "--camera",
                           str(tmp_path / "camera.tum"), "--around", _pose_arg(X_BE0),
                           "--max-angle", "30", "--max-distance", "0.15", "--n", "4",
                           "--num-candidates", "150", "--intrinsics",
@@ -221,7 +221,7 @@ def test_plan_command_on_a_scara_style_recording_picks_poses_that_fix_its_height
     _tum(tmp_path / "robot.tum", recorded)
     _tum(tmp_path / "camera.tum", X_CT)
     out = tmp_path / "out"
-    assert plan_app.main(["--robot", str(tmp_path / "robot.tum"), "--camera",
+    assert cli_main(["plan", "--robot", str(tmp_path / "robot.tum"), "--camera",
                           str(tmp_path / "camera.tum"), "--around", _pose_arg(recorded[0]),
                           "--max-angle", "20", "--num-candidates", "60", "--n", "2",
                           "--out", str(out)]) == 0
@@ -238,7 +238,7 @@ def test_plan_command_from_guesses_and_candidate_file(tmp_path, capsys):
     C = _candidates(9, 25)
     _tum(tmp_path / "cands.tum", C)
     out = tmp_path / "o"
-    code = plan_app.main(["--candidates", str(tmp_path / "cands.tum"), "--hand-eye",
+    code = cli_main(["plan", "--candidates", str(tmp_path / "cands.tum"), "--hand-eye",
                           _pose_arg(X_EC), "--target", "0.55,0.05,0.0", "--n", "3",
                           "--out", str(out)])
     assert code == 0
@@ -260,7 +260,7 @@ def test_plan_command_from_guesses_and_candidate_file(tmp_path, capsys):
     (["--camera", "c.tum", "--around", "0,0,0.4,1,0,0,0"], "--camera: needs --robot"),
 ])
 def test_plan_command_errors_are_one_line(argv, message, tmp_path, capsys):
-    assert plan_app.main([*argv, "--out", str(tmp_path)]) == 2
+    assert cli_main(["plan", *argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("handeye-drake: error: ") and err.count("\n") == 1
     assert __import__("re").search(message, err), err
