@@ -9,8 +9,8 @@ feature error and the real-time factor.
 import argparse
 from pathlib import Path
 
-from handeye_drake.diagram import run_scenario
 from handeye_drake.scenario import load_scenario
+from handeye_drake.simulation import run_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = [("target (default)", None),

@@ -22,9 +22,10 @@ from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from handeye_drake.estimation.configs import PaperFilter  # noqa: E402
+from handeye_drake.estimation.errors import rotation_error_deg  # noqa: E402
 from handeye_drake.estimation.kalman import HandEyeKalmanFilter  # noqa: E402
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp  # noqa: E402
-from handeye_drake.estimation.errors import rotation_error_deg  # noqa: E402
 
 #: Noise of the simulated camera motions (the paper's model) and the filter's assumed noise.
 ROTATION_SIGMA = 1e-3
@@ -47,8 +48,9 @@ def run(updates: int = 10**6, seed: int = 0, check_every: int = 10**5, report=No
     X_init = make_transform(rotation_exp(0.05 * rng.normal(size=3)) @ X_CE[:3, :3],
                             X_CE[:3, 3] + 0.01 * rng.normal(size=3))
     X_CE_inv = inverse(X_CE)
-    kf = HandEyeKalmanFilter(X_init, rotation_sigma=ROTATION_SIGMA,
-                             translation_sigma=TRANSLATION_SIGMA, noise_model="paper")
+    kf = HandEyeKalmanFilter(PaperFilter(rotation_coefficient_sigma=ROTATION_SIGMA,
+                                         translation_sigma=TRANSLATION_SIGMA,
+                                         initial_variances=[1.0] * 12), X_init)
     # Draw the random motions in blocks (vectorized) to keep the loop about the filter itself.
     block = 10_000
     checks, failures = [], []
@@ -64,7 +66,7 @@ def run(updates: int = 10**6, seed: int = 0, check_every: int = 10**5, report=No
         A[:, :3, :3] += ROTATION_SIGMA * rng.normal(size=(n, 3, 3))
         A[:, :3, 3] += TRANSLATION_SIGMA * rng.normal(size=(n, 3))
         for k in range(n):
-            kf.update(A[k], B[k])
+            kf.update_motion(A[k], B[k])
             done += 1
             if done % check_every == 0 or done == updates:
                 P, x = kf.covariance, kf.state

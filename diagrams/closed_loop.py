@@ -4,9 +4,9 @@ Run: ``python diagrams/closed_loop.py`` — writes closed_loop.dot (and .svg wit
 """
 from pathlib import Path
 
-from handeye_drake.diagram import build_diagram
-from handeye_drake.diagram_render import render_diagram
+from handeye_drake.apps.pictures import render_diagram
 from handeye_drake.scenario import load_scenario
+from handeye_drake.simulation import build_diagram
 
 if __name__ == "__main__":
     loop = build_diagram(load_scenario(), with_loggers=False)

@@ -1,39 +1,64 @@
-"""Scenario description of a closed-loop run, Drake style: dataclasses with defaults, loadable from
-YAML with ``pydrake.common.yaml.yaml_load_typed``.
+"""Scenario of a closed-loop run, Drake style: dataclasses with defaults (Drake's own config
+structs where they exist: ``SimulatorConfig``, ``MultibodyPlantConfig``, ``CameraConfig``),
+loaded from YAML with ``pydrake.common.yaml.yaml_load_typed``; variants are typed unions selected
+by a YAML tag (``calibrator.estimator: !ManifoldFilter {...}``, ``camera.model: ...``).
 
 Units: metres, seconds, radians unless a field says ``_deg``; pixels for image quantities. Poses
 use Drake's ``pydrake.common.schema.Transform`` (YAML: ``translation: [x, y, z]`` and
 ``rotation: !Rpy { deg: [r, p, y] }``).
 
-The default scenario: a UR5e above a table, a camera on its flange (``X_EC_true``) looking down
-at a 5-point target; two 20° self-calibration rotations about the camera's x and y axes through a
-point 0.45 m in front of it, then image-based visual servoing to a pose 0.35 m above the target.
+The default scenario: a UR5e above a table, a camera on its flange (``camera.sensor.X_PB``, the
+true X_EC, unknown to the controller) looking down at a 5-point target; two 20° self-calibration
+rotations about the camera's x and y axes through a point 0.45 m in front of it, then image-based
+visual servoing to a pose 0.35 m above the target.
+
+``load_scenario(path)`` checks the file against the schema first, so a mistake is reported with
+the file and the field path (``my.yaml: camera.model.pixel_sigm: unknown field; did you mean
+'pixel_sigma'?``), then validates the values (``Scenario.validate``).
 """
 
-
 import dataclasses
+import difflib
+import math
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
-
 import numpy as np
 from pydrake.common.schema import Rotation, Transform
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_data, yaml_load_typed
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
 
+from .estimation import defaults
+from .estimation.configs import EstimatorConfig, ManifoldFilter, TargetFilter
 from .estimation.se3 import inverse
 from .estimation.validation import check_positive, check_rotation
 
+#: Largest accepted seed (Drake's RandomGenerator is a 32-bit Mersenne twister).
+MAX_SEED = 2**32 - 1
+#: Largest accepted duration (s) and smallest time step: bounds that keep a run finite.
+MAX_DURATION = 3600.0
+MIN_TIME_STEP = 1e-5
 
-def _transform(xyz, rpy_deg) -> Transform:
-    return Transform(translation=list(xyz), rotation=Rotation.Rpy(deg=list(rpy_deg)))
+
+def _transform(xyz, rpy_deg, base_frame=None) -> Transform:
+    return Transform(base_frame=base_frame, translation=list(xyz),
+                     rotation=Rotation.Rpy(deg=list(rpy_deg)))
 
 
 def transform_matrix(t: Transform, name: str) -> np.ndarray:
     """4×4 matrix of a schema Transform, checked to be a rigid transform."""
+    # (GetDeterministicValue aborts the process on a random pose: ask first.)
+    if not t.IsDeterministic():
+        raise ValueError(f"{name}: expected a deterministic pose, got a random one (!Uniform, "
+                         "!Gaussian); give a fixed translation and rotation")
     try:
         X = t.GetDeterministicValue().GetAsMatrix4()
-    except Exception as e:  # a stochastic (Uniform, Gaussian) pose, or a malformed rotation
-        raise ValueError(f"{name}: expected a deterministic pose ({e})") from None
+    except Exception as e:  # a malformed rotation
+        raise ValueError(f"{name}: expected a deterministic pose ({' '.join(str(e).split())})") \
+            from None
     if not np.all(np.isfinite(X)):
         raise ValueError(f"{name}: contains NaN or infinite values")
     check_rotation(X[:3, :3], f"{name}.rotation")
@@ -42,37 +67,66 @@ def transform_matrix(t: Transform, name: str) -> np.ndarray:
 
 @dataclass
 class ArmConfig:
-    """The robot. ``urdf`` empty = the shipped UR5e; ``q0`` start joint angles (deg)."""
+    """The robot. ``urdf`` empty = the shipped UR5e; ``q0_deg``: start joint angles (deg)."""
     urdf: str = ""
     base_frame: str = "base_link"
     ee_frame: str = "tool0"
     q0_deg: list[float] = field(default_factory=lambda: [0.0, -90.0, 90.0, -90.0, -90.0, 0.0])
-    time_step: float = 0.002
     X_WB: Transform = field(default_factory=lambda: _transform([0, 0, 0], [0, 0, 0]))
 
 
 @dataclass
-class CameraConfig:
-    """Pinhole intrinsics (α_u, α_v, angle θ between image axes, principal point, image size),
-    rate, and sensor noise. ``pose_noise_model``: "paper" (additive on rotation coefficients,
-    ``rotation_sigma`` dimensionless) or "so3" (rotation vector, ``rotation_sigma`` rad)."""
-    alpha_u: float = 800.0
-    alpha_v: float = 800.0
-    theta_deg: float = 90.0
-    u0: float = 320.0
-    v0: float = 240.0
-    width: int = 640
-    height: int = 480
-    rate_hz: float = 30.0
-    pixel_sigma: float = 0.5
-    pose_noise_model: str = "so3"
-    rotation_sigma: float = 0.002
-    translation_sigma: float = 0.0005
+class So3PoseNoise:
+    """Noise of the measured target pose X_CT: R ← exp([n]×) R with n ~ N(0, σ² I3) (rad per
+    axis, in C), p ← p + N(0, σ_t² I3) (m)."""
+    rotation_sigma: float = defaults.CAMERA_ROTATION_SIGMA
+    translation_sigma: float = defaults.CAMERA_TRANSLATION_SIGMA
+
+
+@dataclass
+class CoefficientPoseNoise:
+    """The paper's noise of the measured target pose: N(0, σ²) added to each of the 9
+    coefficients of R (dimensionless; the result is not re-orthonormalized), p ← p +
+    N(0, σ_t² I3) (m)."""
+    rotation_coefficient_sigma: float = defaults.CAMERA_ROTATION_SIGMA
+    translation_sigma: float = defaults.CAMERA_TRANSLATION_SIGMA
+
+
+@dataclass
+class PointFeatures:
+    """The camera as a pose oracle (fast): noisy projections of ``target.points`` and a noisy
+    measurement of the target pose X_CT."""
+    pixel_sigma: float = defaults.PIXEL_SIGMA
+    pose_noise: typing.Union[So3PoseNoise, CoefficientPoseNoise] = field(
+        default_factory=So3PoseNoise)
+
+
+CameraModel = typing.Union[PointFeatures]
+
+
+def _default_sensor() -> CameraConfig:
+    # X_PB: the true camera pose on the flange (X_EC), unknown to the controller.
+    return CameraConfig(width=640, height=480, focal=CameraConfig.FocalLength(x=800.0, y=800.0),
+                        center_x=320.0, center_y=240.0, fps=30.0, name="hand_camera",
+                        X_PB=_transform([0.04, -0.03, 0.06], [4, -3, 92]))
+
+
+@dataclass
+class CameraSettings:
+    """The camera: Drake's ``CameraConfig`` for the sensor (image size, focal lengths, principal
+    point, rate ``fps``, and its pose ``X_PB`` on a frame of the arm — the true hand-eye
+    transform: X_EC = X_EP · X_PB · X_BC, P = ``X_PB.base_frame``, a frame fixed to the
+    end-effector's body, or the end-effector frame itself when empty), the paper's angle between
+    the image axes, and the camera model."""
+    sensor: CameraConfig = field(default_factory=_default_sensor)
+    #: Angle θ between the image axes (deg); 90 = no skew. Only the point-feature model can skew.
+    axes_angle_deg: float = 90.0
+    model: CameraModel = field(default_factory=PointFeatures)
 
 
 @dataclass
 class TargetConfig:
-    """Target frame T in world and its points p_TQ (m)."""
+    """Target frame T in the world and its points p_TQ (m), the IBVS features."""
     X_WT: Transform = field(default_factory=lambda: _transform([-0.47, -0.10, 0.0], [0, 0, 20]))
     points: list[list[float]] = field(default_factory=lambda: [
         [-0.05, -0.05, 0.0], [0.05, -0.05, 0.0], [0.05, 0.05, 0.0], [-0.05, 0.05, 0.0],
@@ -82,8 +136,8 @@ class TargetConfig:
 @dataclass
 class SelfCalibrationMotionConfig:
     """A rotation by ``angle_deg`` about ``axis_C`` (a direction in the camera frame, mapped to E
-    through the initial hand-eye guess) through a point ``pivot_distance`` in front of the camera,
-    executed at constant speed in ``duration`` s."""
+    through the initial hand-eye guess) through a point ``pivot_distance`` (m) in front of the
+    camera, executed at constant speed in ``duration`` s."""
     axis_C: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
     angle_deg: float = 20.0
     pivot_distance: float = 0.45
@@ -92,8 +146,9 @@ class SelfCalibrationMotionConfig:
 
 @dataclass
 class ServoConfig:
-    """Image-based visual servo: gain λ (1/s), saturations, and the desired camera pose relative
-    to the target (``X_TC_desired``) from which the desired features s* are projected."""
+    """Image-based visual servo: gain λ (1/s), saturations (rad/s, m/s), and the desired camera
+    pose relative to the target (``X_TC_desired``) from which the desired features s* are
+    projected."""
     gain: float = 0.8
     max_angular_speed: float = 0.5
     max_linear_speed: float = 0.15
@@ -106,76 +161,67 @@ class ServoConfig:
 
 @dataclass
 class CalibratorConfig:
-    """On-line calibrator. ``estimator``: "paper" (PAPER §4–§5, diagonal G2), "paper_full"
-    (estimate-dependent G2), "manifold" (error-state EKF on SE(3) on motion pairs) or "target"
-    (error-state EKF on the raw poses, AX = ZB, the default). The sigmas describe what the
-    estimator measures: the camera motion A for the paper/manifold estimators (paper:
-    coefficient std; so3: rad), the target pose X_CT for "target". ``P0_diagonal``: 12 entries
-    (9 rotation coefficients, 3 translations in m²) for the paper estimators, 6 ([δθ rad²;
-    δt m²]) for ours; empty = the estimator's default."""
-    estimator: str = "target"
+    """On-line calibrator: the classical solver of the self-calibration motions and the
+    estimator (a tagged union: ``!TargetFilter`` (default), ``!ManifoldFilter``,
+    ``!PaperFilter``; see ``handeye_drake.estimation.configs``). Estimator noise sigmas left
+    unset are derived from the camera model (``estimator_config``)."""
     init_method: str = "daniilidis"
-    noise_model: str = "so3"
-    rotation_sigma: float = 0.002
-    translation_sigma: float = 0.0005
-    P0_diagonal: list[float] = field(default_factory=list)
-    process_noise: float = 0.0
-    orthonormalization: str = "svd"
-    #: Motion estimators form a pair once the robot has turned this much since the last used
-    #: sample (0: every sample, as the paper).
-    min_rotation_deg: float = 0.0
-    #: NIS gate probability of our estimators (0 disables the gate).
-    gate_probability: float = 0.999
-
-    def default_P0(self) -> list:
-        if self.P0_diagonal:
-            return list(self.P0_diagonal)
-        if self.estimator in ("paper", "paper_full"):
-            return [1e-4] * 9 + [1e-4] * 3
-        return [(np.radians(1.0))**2] * 3 + [0.01**2] * 3
+    estimator: EstimatorConfig = field(default_factory=TargetFilter)
 
 
 @dataclass
 class Scenario:
+    #: Seeds every noise source (0 … 2³² − 1); the same seed gives bit-identical runs.
     seed: int = 0
+    #: Simulated time (s).
     duration: float = 12.0
+    simulator_config: SimulatorConfig = field(default_factory=SimulatorConfig)
+    plant_config: MultibodyPlantConfig = field(
+        default_factory=lambda: MultibodyPlantConfig(time_step=0.002))
     arm: ArmConfig = field(default_factory=ArmConfig)
-    camera: CameraConfig = field(default_factory=CameraConfig)
+    camera: CameraSettings = field(default_factory=CameraSettings)
     target: TargetConfig = field(default_factory=TargetConfig)
     servo: ServoConfig = field(default_factory=ServoConfig)
     calibrator: CalibratorConfig = field(default_factory=CalibratorConfig)
-    #: The real camera pose on the flange (E → C), unknown to the controller.
-    X_EC_true: Transform = field(default_factory=lambda: _transform([0.04, -0.03, 0.06],
-                                                                     [4, -3, 92]))
-    #: The user's rough guess of it: used for the self-calibration pivots and before the
+    #: The user's rough guess of X_EC: used for the self-calibration pivots and before the
     #: two-motion solution exists.
     X_EC_guess: Transform = field(default_factory=lambda: _transform([0.0, 0.0, 0.05],
                                                                       [0, 0, 90]))
 
     def validate(self) -> "Scenario":
-        """Raises ValueError on anything that would make the simulation meaningless."""
+        """Raises ValueError (naming the field) on anything that would make the simulation
+        meaningless or endless."""
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or \
+                not 0 <= self.seed <= MAX_SEED:
+            raise ValueError(f"seed: expected an integer in [0, {MAX_SEED}], got {self.seed!r}")
         check_positive(self.duration, "duration")
-        check_positive(self.camera.rate_hz, "camera.rate_hz")
-        check_positive(self.arm.time_step, "arm.time_step")
+        if self.duration > MAX_DURATION:
+            raise ValueError(f"duration: {self.duration:g} s is longer than the {MAX_DURATION:g} "
+                             "s a run may last (split it, or raise scenario.MAX_DURATION)")
+        check_positive(self.plant_config.time_step, "plant_config.time_step")
+        if self.plant_config.time_step < MIN_TIME_STEP:
+            raise ValueError(f"plant_config.time_step: {self.plant_config.time_step:g} s is below "
+                             f"{MIN_TIME_STEP:g} s (the run would never end)")
+        s = self.camera.sensor
+        check_positive(s.fps, "camera.sensor.fps")
+        if s.width < 1 or s.height < 1:
+            raise ValueError(f"camera.sensor: image size must be positive, got {s.width}×"
+                             f"{s.height}")
+        check_positive(s.focal_x(), "camera.sensor.focal")
+        check_positive(s.focal_y(), "camera.sensor.focal")
+        if not 0.0 < self.camera.axes_angle_deg < 180.0:
+            raise ValueError("camera.axes_angle_deg: must be in (0, 180), got "
+                             f"{self.camera.axes_angle_deg}")
+        if self.period > 0.5 * self.duration:
+            raise ValueError(f"camera.sensor.fps: one frame every {self.period:g} s leaves "
+                             f"fewer than 2 frames in duration = {self.duration:g} s")
+        m = self.camera.model
+        check_positive(m.pixel_sigma, "camera.model.pixel_sigma", allow_zero=True)
+        for name, value in dataclasses.asdict(m.pose_noise).items():
+            check_positive(value, f"camera.model.pose_noise.{name}", allow_zero=True)
         check_positive(self.servo.gain, "servo.gain")
         check_positive(self.servo.max_angular_speed, "servo.max_angular_speed")
         check_positive(self.servo.max_linear_speed, "servo.max_linear_speed")
-        for name in ("pixel_sigma", "rotation_sigma", "translation_sigma"):
-            check_positive(getattr(self.camera, name), f"camera.{name}", allow_zero=True)
-        for name in ("rotation_sigma", "translation_sigma", "process_noise", "min_rotation_deg"):
-            check_positive(getattr(self.calibrator, name), f"calibrator.{name}", allow_zero=True)
-        from .systems.calibrator import ESTIMATORS
-        if self.calibrator.estimator not in ESTIMATORS:
-            raise ValueError(f"calibrator.estimator: expected one of {ESTIMATORS}, got "
-                             f"{self.calibrator.estimator!r}")
-        n = 12 if self.calibrator.estimator in ("paper", "paper_full") else 6
-        P0 = self.calibrator.default_P0()
-        if len(P0) != n or not all(np.isfinite(v) and v > 0 for v in P0):
-            raise ValueError(f"calibrator.P0_diagonal: needs {n} positive finite variances for "
-                             f"estimator {self.calibrator.estimator!r}, got {P0}")
-        if not 0.0 <= self.calibrator.gate_probability < 1.0:
-            raise ValueError("calibrator.gate_probability: must be in [0, 1), got "
-                             f"{self.calibrator.gate_probability}")
         if len(self.servo.self_calibration) < 2:
             raise ValueError("servo.self_calibration: needs at least 2 motions (with non-parallel "
                              f"axes), got {len(self.servo.self_calibration)}")
@@ -187,23 +233,35 @@ class Scenario:
                     np.linalg.norm(m.axis_C) < 1e-9:
                 raise ValueError(f"servo.self_calibration[{i}].axis_C: needs a non-zero finite "
                                  f"3-vector, got {m.axis_C}")
-        for name in ("X_EC_true", "X_EC_guess"):
-            transform_matrix(getattr(self, name), name)
+        from .estimation.solvers import METHODS
+        if self.calibrator.init_method not in METHODS:
+            raise ValueError(f"calibrator.init_method: expected one of {METHODS}, got "
+                             f"{self.calibrator.init_method!r}")
+        self.estimator_config()
+        transform_matrix(self.camera.sensor.X_PB, "camera.sensor.X_PB")
+        transform_matrix(self.camera.sensor.X_BC, "camera.sensor.X_BC")
+        transform_matrix(self.X_EC_guess, "X_EC_guess")
         transform_matrix(self.target.X_WT, "target.X_WT")
         transform_matrix(self.servo.X_TC_desired, "servo.X_TC_desired")
         transform_matrix(self.arm.X_WB, "arm.X_WB")
-        pts = np.asarray(self.target.points, dtype=float)
+        try:
+            pts = np.asarray(self.target.points, dtype=float)
+        except ValueError:
+            raise ValueError("target.points: needs a list of [x, y, z] points (every point with "
+                             "3 coordinates)") from None
         if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 3 or not np.all(np.isfinite(pts)):
             raise ValueError("target.points: needs at least 3 finite [x, y, z] points, got "
                              f"shape {pts.shape}")
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if spread[1] < 1e-6 * max(spread[0], 1e-12):
+            raise ValueError("target.points: the points are collinear (or all equal); a 6-DOF "
+                             "visual servo needs at least 3 points not on one line")
         return self
 
     @property
     def period(self) -> float:
-        return 1.0 / self.camera.rate_hz
-
-    def X_EC_true_matrix(self) -> np.ndarray:
-        return transform_matrix(self.X_EC_true, "X_EC_true")
+        """The camera period (s)."""
+        return 1.0 / self.camera.sensor.fps
 
     def X_EC_guess_matrix(self) -> np.ndarray:
         return transform_matrix(self.X_EC_guess, "X_EC_guess")
@@ -211,24 +269,165 @@ class Scenario:
     def X_CE_guess_matrix(self) -> np.ndarray:
         return inverse(self.X_EC_guess_matrix())
 
+    def estimator_config(self):
+        """The calibrator's estimator settings with every unset noise sigma derived from the
+        camera model, validated (``camera.model.pose_noise``: the pose noise for
+        ``TargetFilter``; for the motion filters, the noise of a motion differenced from two
+        such poses with the target at the desired distance)."""
+        est = self.calibrator.estimator
+        noise = self.camera.model.pose_noise
+        if isinstance(noise, So3PoseNoise):
+            so3, coefficient = noise.rotation_sigma, None
+        else:
+            coefficient = noise.rotation_coefficient_sigma
+            so3 = coefficient / math.sqrt(2.0)  # the rotation-vector part of coefficient noise
+        st = noise.translation_sigma
+        d = float(np.linalg.norm(transform_matrix(self.servo.X_TC_desired,
+                                                  "servo.X_TC_desired")[:3, 3]))
+        # A = X_CT0 X_CT1⁻¹: two poses' noise, the rotation noise moving t_A by ~ ‖t_CT‖.
+        motion_st = math.sqrt(2.0 * st**2 + 4.0 / 3.0 * so3**2 * d**2)
+        if isinstance(est, TargetFilter):
+            derived = {"rotation_sigma": so3, "translation_sigma": st}
+        elif isinstance(est, ManifoldFilter):
+            derived = {"rotation_sigma": math.sqrt(2.0) * so3, "translation_sigma": motion_st}
+        else:
+            derived = {"rotation_coefficient_sigma": math.sqrt(2.0) * (
+                coefficient if coefficient is not None else so3 * math.sqrt(4.0 / 3.0)),
+                "translation_sigma": motion_st}
+        changes = {k: max(v, 1e-9) for k, v in derived.items() if getattr(est, k) is None}
+        return dataclasses.replace(est, **changes).validated("calibrator.estimator")
+
+
+# ----------------------------------------------------------------------------- YAML checking
+def _is_schema(t) -> bool:
+    return dataclasses.is_dataclass(t) or hasattr(t, "__fields__")
+
+
+def _fields(t) -> dict:
+    if dataclasses.is_dataclass(t):
+        hints = typing.get_type_hints(t)
+        return {f.name: hints[f.name] for f in dataclasses.fields(t)}
+    return {f.name: f.type for f in t.__fields__}
+
+
+def _describe(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _check(data, schema, path: str) -> None:
+    """Raises ValueError "PATH: problem" for the first mismatch between plain YAML data and a
+    schema type (unknown fields with a suggestion, wrong scalar types, unknown tags)."""
+    where = path or "(top level)"
+    origin = typing.get_origin(schema)
+    if origin is typing.Union:
+        members = [m for m in typing.get_args(schema) if m is not type(None)]
+        if data is None and len(members) < len(typing.get_args(schema)):
+            return
+        tag = data.get("_tag") if isinstance(data, dict) else None
+        if tag is None:
+            if len(members) == 1 or not all(_is_schema(m) for m in members):
+                if len(members) == 1:
+                    _check(data, members[0], path)
+                return  # a scalar-or-struct union (Drake's own): left to yaml_load_typed
+            _check(data, members[0], path)
+            return
+        names = {f"!{getattr(m, '__name__', '')}": m for m in members}
+        if tag not in names:
+            raise ValueError(f"{where}: unknown type tag {tag}; expected one of "
+                             f"{', '.join(sorted(names))}")
+        _check(data, names[tag], path)
+        return
+    if origin in (list, typing.List):
+        if not isinstance(data, list):
+            raise ValueError(f"{where}: expected a list, got {_describe(data)}")
+        (item,) = typing.get_args(schema) or (typing.Any,)
+        for i, v in enumerate(data):
+            _check(v, item, f"{path}[{i}]")
+        return
+    if schema is float:
+        if isinstance(data, bool) or not isinstance(data, (int, float, str)):
+            raise ValueError(f"{where}: expected a number, got {_describe(data)}")
+        if isinstance(data, str):
+            try:
+                float(data)
+            except ValueError:
+                raise ValueError(f"{where}: expected a number, got {_describe(data)}") from None
+        return
+    if schema is int:
+        if isinstance(data, bool) or not isinstance(data, int):
+            raise ValueError(f"{where}: expected an integer, got {_describe(data)}")
+        return
+    if schema is bool:
+        if not isinstance(data, bool):
+            raise ValueError(f"{where}: expected true or false, got {_describe(data)}")
+        return
+    if schema is str:
+        if not isinstance(data, str):
+            raise ValueError(f"{where}: expected a string, got {_describe(data)}")
+        return
+    if _is_schema(schema):
+        if data is None:
+            return
+        if not isinstance(data, dict):
+            raise ValueError(f"{where}: expected a mapping of fields, got {_describe(data)}")
+        fields = _fields(schema)
+        for key, value in data.items():
+            if key == "_tag":
+                continue
+            child = f"{path}.{key}" if path else str(key)
+            if key not in fields:
+                close = difflib.get_close_matches(str(key), list(fields), n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else (
+                    f"; known fields: {', '.join(fields)}")
+                raise ValueError(f"{child}: unknown field{hint}")
+            if schema.__module__.startswith("pydrake.common.schema"):
+                continue  # Drake's pose/distribution types: yaml_load_typed checks them
+            _check(value, fields[key], child)
+
 
 def load_scenario(path=None, text: str | None = None) -> Scenario:
     """The default scenario, or one read from a YAML file / string (unset fields keep their
-    defaults). Raises ValueError on unknown fields, wrong types, or invalid values."""
+    defaults). Raises ValueError — one line naming the file and the field — on malformed YAML,
+    unknown fields, wrong types, or invalid values."""
     if path is None and text is None:
         return Scenario().validate()
+    source = "scenario"
     if text is None:
         p = Path(path)
+        source = str(p)
         if not p.is_file():
-            raise ValueError(f"scenario: no such file {str(p)!r}")
-        text = p.read_text()
+            raise ValueError(f"scenario: no such file {source!r}")
+        raw = p.read_bytes()[:10_000_001]
+        if len(raw) > 10_000_000:
+            raise ValueError(f"{source}: larger than 10 MB, not a scenario file")
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = raw[:e.start].count(b"\n") + 1
+            raise ValueError(f"{source}:{line}: not UTF-8 text (byte {e.start})") from None
     if not text.strip():
-        raise ValueError("scenario: the file is empty")
+        raise ValueError(f"{source}: the file is empty")
+    try:
+        data = yaml_load_data(text)
+    except Exception as e:  # the YAML parser's errors (syntax, !!python tags, ...)
+        raise ValueError(f"{source}: not a valid scenario YAML file: "
+                         f"{' '.join(str(e).split())}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{source}: expected a mapping of scenario fields at the top level, "
+                         f"got {_describe(data)}")
+    try:
+        _check(data, Scenario, "")
+    except ValueError as e:
+        raise ValueError(f"{source}: {e}") from None
     try:
         scenario = yaml_load_typed(schema=Scenario, data=text, defaults=Scenario())
-    except RuntimeError as e:
-        raise ValueError(f"scenario: {e}") from None
-    return scenario.validate()
+    except Exception as e:  # noqa: BLE001 - Drake's loader raises RuntimeError/TypeError/...
+        raise ValueError(f"{source}: {' '.join(str(e).split())}") from None
+    try:
+        return scenario.validate()
+    except ValueError as e:
+        raise ValueError(f"{source}: {e}") from None
 
 
 def dump_scenario(scenario: Scenario) -> str:

@@ -1,4 +1,4 @@
-"""Error measures of PAPER §8. Both arguments must use the same convention (both X_CE or both
+"""Error measures of docs/method.md §8. Both arguments must use the same convention (both X_CE or both
 X_EC): the relative translation error differs between the two."""
 
 from __future__ import annotations

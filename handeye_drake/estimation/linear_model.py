@@ -1,4 +1,4 @@
-"""Relative motions and the paper's linear model of AX = XB (PAPER §2–§3).
+"""Relative motions and the paper's linear model of AX = XB (docs/method.md §2–§3).
 
 Frames: the robot reports ``X_BE`` (end-effector E in robot base B, OpenCV's "gripper→base"), the
 camera measures ``X_CT`` (target T in camera C, OpenCV's "target→camera"). Between samples k−1 and
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .se3 import inverse
 from .validation import as_transform, as_transform_list, check_same_length
 
 
@@ -30,20 +29,30 @@ def relative_motions(X_BE_list, X_CT_list, rigid_camera: bool = True):
     X_BE = as_transform_list(X_BE_list, "X_BE_list", rigid=True, min_length=2)
     X_CT = as_transform_list(X_CT_list, "X_CT_list", rigid=rigid_camera, min_length=2)
     check_same_length(X_BE, "X_BE_list", X_CT, "X_CT_list")
-    inv_cam = inverse if rigid_camera else np.linalg.inv
     if not rigid_camera:
         for i, X in enumerate(X_CT):
             if abs(np.linalg.det(X[:3, :3])) < 1e-9:
                 raise ValueError(f"X_CT_list[{i}]: rotation block is singular, cannot be inverted")
     with np.errstate(over="ignore", invalid="ignore"):
-        A_list = [X_CT[k - 1] @ inv_cam(X_CT[k]) for k in range(1, len(X_CT))]
-        B_list = [inverse(X_BE[k - 1]) @ X_BE[k] for k in range(1, len(X_BE))]
+        A_list, B_list = relative_motions_unchecked(np.array(X_BE), np.array(X_CT))
     for name, motions in (("X_CT_list", A_list), ("X_BE_list", B_list)):
         for k, M in enumerate(motions):
             if not np.all(np.isfinite(M)):
                 raise ValueError(f"{name}[{k}], {name}[{k + 1}]: the motion between them "
                                  "overflows (translations too large?)")
-    return A_list, B_list
+    return list(A_list), list(B_list)
+
+
+def relative_motions_unchecked(X_BE: np.ndarray, X_CT: np.ndarray):
+    """``relative_motions`` on validated (K, 4, 4) stacks, vectorized: (A (K−1, 4, 4),
+    B (K−1, 4, 4)). Camera poses are inverted as general matrices, so measured rotation blocks
+    need not be orthonormal."""
+    A = X_CT[:-1] @ np.linalg.inv(X_CT[1:])
+    R, p = X_BE[:-1, :3, :3], X_BE[:-1, :3, 3]
+    B = np.einsum("kji,kjl->kil", R, X_BE[1:, :3, :])  # R_{k-1}ᵀ [R_k | p_k]
+    B[:, :, 3] -= np.einsum("kji,kj->ki", R, p)
+    B = np.concatenate([B, np.broadcast_to([0.0, 0.0, 0.0, 1.0], (len(B), 1, 4))], axis=1)
+    return A, B
 
 
 def linear_system_matrices(A: np.ndarray, B: np.ndarray):
@@ -60,7 +69,7 @@ def linear_system_matrices(A: np.ndarray, B: np.ndarray):
 
 
 def linear_system(A, B):
-    """The paper's linear measurement model C x = y of one motion pair (PAPER §3).
+    """The paper's linear measurement model C x = y of one motion pair (docs/method.md §3).
 
     x = [i; j; k; t_X] stacks the rows of R_X (row-major vec) and t_X, for X = X_CE.
 

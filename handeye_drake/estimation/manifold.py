@@ -1,52 +1,45 @@
-"""On-line hand-eye estimators that respect SO(3) (beyond PAPER §9's open points).
+"""On-line hand-eye estimators that respect SO(3): error-state (multiplicative) Kalman filters.
 
-Both are error-state (multiplicative) extended Kalman filters: the estimate is kept as an exact
-rigid transform, the filter state is a small perturbation δ = [δθ; δt] with
-R = exp(δθ) R̂, t = t̂ + δt, and the covariance lives in that 6-D tangent space.
+The estimate is kept as an exact rigid transform; the filter state is a small perturbation
+δ = [δθ; δt] with R = exp(δθ) R̂, t = t̂ + δt, and the covariance lives in that tangent space.
 
-- ``ManifoldHandEyeFilter``: the paper's measurement, one motion pair (A, B) at a time, with the
-  sensor's noise on SO(3) ("so3": rotation-vector noise on R_A) or the paper's coefficient noise
-  ("paper", mapped to its rotation-vector equivalent), iterated where the update is large, with an
-  innovation (NIS) gate against outliers.
-- ``HandEyeTargetFilter``: the same idea on raw synchronized poses, AX = ZB: it estimates X_CE
-  and the fixed target pose in the robot base X_BT jointly from each (X_BE, X_CT) sample. Each
-  measurement then enters once, with white noise; differencing poses into motions (A, B) instead
-  makes consecutive motions share noise and throws away the fact that the target does not move.
+- ``ManifoldHandEyeFilter``: the paper's measurement, one motion pair (A, B) at a time, with
+  rotation-vector noise on the measured R_A, iterated where the update is large, behind an
+  innovation (NIS) gate.
+- ``HandEyeTargetFilter``: AX = ZB on raw synchronized poses: X_CE and the fixed target pose in
+  the robot base X_BT, estimated jointly from each (X_BE, X_CT) sample. Each measurement enters
+  once with white noise; differencing poses into motions instead makes consecutive motions share
+  noise and throws away the fact that the target does not move.
 
-Frames: X_CE is the paper's X (E in C); X_EC = inv(X_CE); X_BE end-effector in robot base; X_CT
-target in camera; X_BT target in robot base.
+Both implement ``estimator.OnlineEstimator`` (settings: ``configs.ManifoldFilter``,
+``configs.TargetFilter``). Frames: X_CE is the paper's X (E in C); X_EC = inv(X_CE); X_BE
+end-effector in robot base; X_CT target in camera; X_BT target in robot base.
 """
 
 from __future__ import annotations
+
+import functools
+import math
 
 import numpy as np
 import scipy.linalg
 from scipy.stats import chi2
 
+from . import defaults
+from .configs import ManifoldFilter, TargetFilter
+from .estimator import EstimatorBase, VectorLayout, rotation_vector_between
 from .orthonormalize import orthonormalize_unchecked
-from .se3 import inverse, make_transform, rotation_exp, rotation_log, skew
-from .validation import as_transform, check_covariance, check_positive
-
-NOISE_MODELS = ("so3", "paper")
-
-
-def _project(R):
-    """Nearest rotation of a measured (possibly non-orthonormal) rotation block."""
-    return orthonormalize_unchecked(np.asarray(R, dtype=float), "svd")
-
-
-def rotation_noise_variance(noise_model: str, rotation_sigma: float) -> float:
-    """Variance of each rotation-vector component of the measured rotation's error.
-
-    "so3": the sensor perturbs the rotation vector: σ². "paper": i.i.d. N(0, σ²) on the 9
-    coefficients of R; after projection onto SO(3) only the skew part of Δ Rᵀ survives, whose
-    axial vector has variance σ²/2 per component.
-    """
-    if noise_model == "so3":
-        return rotation_sigma**2
-    if noise_model == "paper":
-        return 0.5 * rotation_sigma**2
-    raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
+from .se3 import (
+    inverse,
+    make_transform,
+    pose_to_vector,
+    retract_pose,
+    rotation_angle,
+    rotation_log,
+    skew,
+    vector_to_pose,
+)
+from .validation import as_transform, check_covariance
 
 
 def _robust_inverse(S):
@@ -57,20 +50,10 @@ def _robust_inverse(S):
         return np.linalg.pinv(S, rcond=1e-12, hermitian=True)
 
 
-def _std_deg_and_length(P6):
-    d = np.sqrt(np.maximum(np.diag(P6), 0.0))
-    return np.degrees(d[:3]), d[3:6]
-
-
-def inverse_tangent_jacobian(X_CE) -> np.ndarray:
-    """6×6 J with δ_EC ≈ J δ_CE for X_EC = inv(X_CE), both perturbations of the form
-    R = exp(δθ) R̂, t = t̂ + δt: δθ_EC = −Rᵀ δθ, δt_EC = −Rᵀ [t]× δθ − Rᵀ δt."""
-    R, t = X_CE[:3, :3], X_CE[:3, 3]
-    J = np.zeros((6, 6))
-    J[:3, :3] = -R.T
-    J[3:, :3] = -R.T @ skew(t)
-    J[3:, 3:] = -R.T
-    return J
+@functools.lru_cache(maxsize=64)
+def gate_threshold(probability: float | None, dof: int) -> float:
+    """NIS threshold of a gate probability (∞ for None)."""
+    return math.inf if probability is None else float(chi2.ppf(probability, dof))
 
 
 def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.inf,
@@ -84,7 +67,8 @@ def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.
             and H = ∂h/∂δ (so z(x̂ ⊕ δ) ≈ z − H δ).
         retract: ``retract(estimate, δ)`` → the estimate moved by δ.
         Rn: measurement noise covariance (m×m).
-        gate: NIS threshold; above it the measurement is rejected.
+        gate: NIS threshold; above it (or above the gross-error bound
+            m · ``defaults.GROSS_ERROR_SIGMAS``²) the measurement is rejected.
         iterations: Gauss–Newton iterations (1 = plain EKF); δ is always measured from the prior.
 
     Returns:
@@ -93,7 +77,7 @@ def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.
     z, H = residual(estimate, measurement)
     S_inv = _robust_inverse(H @ P @ H.T + Rn)
     nis = float(z @ S_inv @ z)
-    if not np.isfinite(nis) or nis > gate:
+    if not np.isfinite(nis) or nis > min(gate, len(z) * defaults.GROSS_ERROR_SIGMAS**2):
         return estimate, P, False, nis
     est, delta = estimate, np.zeros(len(P))
     for i in range(iterations):
@@ -147,7 +131,7 @@ def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, ga
     many rejections are far more likely a covariance that is too small (bad start, inconsistent
     P0) than outliers; without recovery the estimate would freeze and every later measurement be
     discarded. P is then inflated just enough for this innovation to look typical (χ² median);
-    a measurement that no state error explains stays rejected.
+    a measurement that no state error explains, or a gross error, stays rejected.
 
     Returns (estimate, P, accepted, nis, inflated).
     """
@@ -157,6 +141,8 @@ def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, ga
             or consecutive_rejections + 1 < max_consecutive_rejections):
         return est, P_new, accepted, nis, False
     z, H = residual(estimate, measurement)
+    if nis > len(z) * defaults.GROSS_ERROR_SIGMAS**2:
+        return est, P_new, False, nis, False
     s = covariance_inflation(z, H, P, Rn, float(chi2.ppf(0.5, len(z))))
     if s is None:
         return est, P_new, False, nis, False
@@ -179,11 +165,6 @@ def motion_residual(X_CE, measurement):
     H[3:, :3] = -skew(R @ t_B) + skew(R_A @ t) @ (I - R_A)
     H[3:, 3:] = I - R_A
     return z, H
-
-
-def retract_pose(X, delta):
-    """X ⊕ δ: R ← exp(δθ) R, t ← t + δt."""
-    return make_transform(rotation_exp(delta[:3]) @ X[:3, :3], X[:3, 3] + delta[3:6])
 
 
 def pose_residual(estimate, measurement):
@@ -211,80 +192,47 @@ def retract_pose_pair(estimate, delta):
     return retract_pose(X_CE, delta[:6]), retract_pose(X_BT, delta[6:12])
 
 
-def measurement_noise_covariance(noise_model: str, rotation_sigma: float,
-                                 translation_sigma: float) -> np.ndarray:
-    """6×6 covariance of [rotation-vector error; translation error] of a measured pose/motion."""
-    return np.diag([rotation_noise_variance(noise_model, rotation_sigma)] * 3
-                   + [translation_sigma**2] * 3)
+def _noise_covariance(rotation_sigma: float, translation_sigma: float) -> np.ndarray:
+    return np.diag([rotation_sigma**2] * 3 + [translation_sigma**2] * 3)
 
 
-class _ErrorStateFilter:
-    """Shared machinery: gate, iterated update, covariance bookkeeping."""
+def _measured_rotation(R, name: str) -> np.ndarray:
+    """The nearest rotation of a measured (possibly non-orthonormal) rotation block; refuses
+    blocks that are no noisy rotation at all (singular, or a reflection)."""
+    det = float(np.linalg.det(R))
+    if not det > 1e-6:
+        raise ValueError(f"{name}: rotation block is not a (noisy) rotation (det = {det:.3g}; a "
+                         "reflection or a singular matrix — a flipped axis in the data?)")
+    return orthonormalize_unchecked(R, "svd")
 
-    _dim = 6
 
-    def __init__(self, P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                 gate_probability, iterations, max_consecutive_rejections=5,
-                 orthonormalization="svd"):
-        if orthonormalization not in ("svd", "qr", "horn"):
-            raise ValueError("orthonormalization: expected one of ('svd', 'qr', 'horn'), got "
-                             f"{orthonormalization!r}")
-        self._orthonormalization = orthonormalization
-        if noise_model not in NOISE_MODELS:
-            raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
-        self._noise_model = noise_model
-        self._rotation_sigma = check_positive(rotation_sigma, "rotation_sigma")
-        self._translation_sigma = check_positive(translation_sigma, "translation_sigma")
-        self._Rn = measurement_noise_covariance(noise_model, self._rotation_sigma,
-                                                self._translation_sigma)
-        n = self._dim
-        self._P = check_covariance(np.eye(n) if P0 is None else P0, "P0", n)
-        self._G1 = check_covariance(0.0 if process_cov is None else process_cov, "process_cov", n)
-        if gate_probability is None:
-            self._gate = np.inf
-        else:
-            p = float(gate_probability)
-            if not 0.0 < p < 1.0:
-                raise ValueError(f"gate_probability: must be in (0, 1) or None, got "
-                                 f"{gate_probability!r}")
-            self._gate = float(chi2.ppf(p, 6))
-        it = int(iterations)
-        if it != iterations or it < 1:
-            raise ValueError(f"iterations: needs an integer ≥ 1, got {iterations!r}")
-        self._iterations = it
-        if max_consecutive_rejections is None:
-            self._max_consecutive = None
-        else:
-            k = int(max_consecutive_rejections)
-            if k != max_consecutive_rejections or k < 1:
-                raise ValueError("max_consecutive_rejections: needs an integer ≥ 1 or None, got "
-                                 f"{max_consecutive_rejections!r}")
-            self._max_consecutive = k
-        self._num_updates = 0
-        self._num_rejected = 0
-        self._consecutive_rejections = 0
-        self._num_inflations = 0
-        self._last_nis = float("nan")
-        self._last_rejected = False
+def _check_sample(X_BE, X_CT) -> tuple[np.ndarray, np.ndarray]:
+    X_BE = as_transform(X_BE, "X_BE", rigid=True)
+    X_CT = as_transform(X_CT, "X_CT", rigid=False)
+    _measured_rotation(X_CT[:3, :3], "X_CT")
+    return X_BE, X_CT
 
-    # Subclasses provide: _residual(estimate, meas) -> (z (6), H (6×n)), _retract(estimate, δ).
-    def _update(self, meas) -> bool:
+
+class _ErrorStateFilter(EstimatorBase):
+    """The gated, iterated update shared by both filters."""
+
+    def _gated_update(self, meas, Rn, process) -> bool:
         est, P, accepted, nis, inflated = gated_error_state_update(
-            self._estimate, self._P + self._G1, meas, self._residual, self._retract, self._Rn,
-            self._gate, self._iterations, self._consecutive_rejections, self._max_consecutive)
+            self._estimate, self._P + process, meas, self._residual, self._retract, Rn,
+            self._gate, self.config.iterations, self._consecutive,
+            self.config.max_consecutive_rejections)
         self._last_nis = nis
-        self._last_rejected = not accepted
         if not accepted:
             self._P = P
             self._num_rejected += 1
-            self._consecutive_rejections += 1
+            self._consecutive += 1
             return False
-        if not (all(np.all(np.isfinite(v)) for v in self._finite_parts(est))
-                and np.all(np.isfinite(P))):
+        parts = est if isinstance(est, tuple) else (est,)
+        if not (all(np.all(np.isfinite(v)) for v in parts) and np.all(np.isfinite(P))):
             raise ValueError("the update produced a non-finite estimate; state left unchanged")
         self._estimate, self._P = est, P
         self._num_updates += 1
-        self._consecutive_rejections = 0
+        self._consecutive = 0
         self._num_inflations += int(inflated)
         return True
 
@@ -294,223 +242,270 @@ class _ErrorStateFilter:
         return self._P.copy()
 
     @property
-    def num_updates(self) -> int:
-        return self._num_updates
-
-    @property
-    def num_rejected(self) -> int:
-        """Measurements rejected by the NIS gate so far."""
-        return self._num_rejected
-
-    @property
-    def last_nis(self) -> float:
-        """Normalized innovation squared of the last measurement (χ² with 6 dof if consistent)."""
-        return self._last_nis
-
-    @property
-    def last_rejected(self) -> bool:
-        return self._last_rejected
-
-    @property
-    def num_inflations(self) -> int:
-        """Gate lock-outs recovered from by inflating the covariance (see
-        ``max_consecutive_rejections``)."""
-        return self._num_inflations
-
-
-    # The hand-eye part, common to both filters: its error state is the first 6 of the state.
-    def _hand_eye(self) -> np.ndarray:
-        raise NotImplementedError
-
-    @property
-    def X_CE(self) -> np.ndarray:
-        """Estimate of X_CE, the paper's X (an exact rigid transform)."""
-        return self._hand_eye().copy()
-
-    @property
-    def X_EC(self) -> np.ndarray:
-        """Estimate of X_EC = inv(X_CE), the camera on the hand."""
-        return inverse(self._hand_eye())
-
-    @property
-    def state(self) -> np.ndarray:
-        """[vec_row(R_X); t_X] of X_CE, the layout of ``HandEyeKalmanFilter.state``."""
-        X = self._hand_eye()
-        return np.concatenate([X[:3, :3].reshape(9), X[:3, 3]])
-
-    @property
     def X_CE_covariance(self) -> np.ndarray:
-        """6×6 covariance of X_CE's error [δθ (rad, about C's axes); δt]."""
         return self._P[:6, :6].copy()
-
-    @property
-    def rotation_std_deg(self) -> np.ndarray:
-        """Standard deviations of the rotation error of X_CE about C's axes (deg)."""
-        return _std_deg_and_length(self._P[:6, :6])[0]
-
-    @property
-    def translation_std(self) -> np.ndarray:
-        """Standard deviations of t_CE's coordinates (length units, in C)."""
-        return _std_deg_and_length(self._P[:6, :6])[1]
-
-    @property
-    def X_EC_covariance(self) -> np.ndarray:
-        """6×6 covariance of X_EC's error [δθ (rad, about E's axes); δt]."""
-        J = inverse_tangent_jacobian(self._hand_eye())
-        return J @ self._P[:6, :6] @ J.T
-
-    @property
-    def X_EC_rotation_std_deg(self) -> np.ndarray:
-        """Standard deviations of the rotation error of X_EC about E's axes (deg)."""
-        return _std_deg_and_length(self.X_EC_covariance)[0]
-
-    @property
-    def X_EC_translation_std(self) -> np.ndarray:
-        """Standard deviations of t_EC's coordinates (length units, in E)."""
-        return _std_deg_and_length(self.X_EC_covariance)[1]
 
 
 class ManifoldHandEyeFilter(_ErrorStateFilter):
     """Error-state EKF on SE(3) for AX = XB, one motion pair at a time.
 
-    Same interface as ``HandEyeKalmanFilter``: ``update(A, B)`` with A = X_{C(k−1)C(k)} (camera
-    motion, may be non-orthonormal under the paper's noise; it is projected onto SO(3)), B =
-    X_{E(k−1)E(k)} (robot motion, rigid); properties ``X_CE``, ``X_EC``, ``covariance``, ``state``.
+    Measurement model: R_A = exp(n_r) R_X R_B R_Xᵀ, t_A = R_X t_B + t_X − R_A t_X + n_t with
+    n_r ~ N(0, σ_r² I3) (rad), n_t ~ N(0, σ_t² I3) (m); error state [δθ; δt] of X_CE (6), so
+    ``covariance`` is 6×6. Measured R_A may be non-orthonormal (the paper's coefficient noise);
+    it is projected onto SO(3) (for coefficient noise of std σ, use rotation_sigma = σ/√2).
 
-    Measurement model: R_A = exp(n_r) R_X R_B R_Xᵀ, t_A = R_X t_B + t_X − R_A t_X + n_t, with
-    n_r ~ N(0, σ_r'² I3) (σ_r' from ``rotation_noise_variance``) and n_t ~ N(0, σ_t² I3).
+    ``update(X_BE, X_CT)`` forms the motion from the previous usable sample;
+    ``update_motion(A, B)`` takes A = X_{C(k−1)C(k)}, B = X_{E(k−1)E(k)} directly. Both return
+    False when the NIS gate rejected the pair (the estimate is then unchanged).
 
     Args:
+        config: ``configs.ManifoldFilter`` (sigmas set).
         X_CE_init: initial estimate (4×4 rigid or RigidTransform).
-        P0: 6×6 covariance of the initial error [δθ (rad); δt (length)] (6-diagonal or scalar
-            accepted); default I6.
-        process_cov: 6×6 process noise added before each update; default 0 (X constant).
-        rotation_sigma: rotation noise of the measured A: rad (rotation vector) for "so3", the
-            coefficient std for "paper".
-        translation_sigma: std of each coordinate of the measured t_A.
-        noise_model: "so3" or "paper".
-        orthonormalization: accepted for interface parity with ``HandEyeKalmanFilter``; the
-            estimate is always an exact rotation, so it is only used to project measured R_A.
-        gate_probability: NIS gate: a pair whose normalized innovation exceeds the χ²(6)
-            quantile of this probability is rejected (counted in ``num_rejected``); None disables.
-        iterations: maximum Gauss–Newton iterations of the iterated EKF (1 = plain EKF).
-        max_consecutive_rejections: after this many gate rejections in a row the filter takes
-            its covariance, not the measurements, to be wrong (a gate lock-out, e.g. after a bad
-            start): it inflates P until the current innovation is typical and accepts it
-            (counted in ``num_inflations``); a measurement that no state error explains stays
-            rejected. None disables (a lock-out then freezes the estimate for good).
+        X_CE_covariance: optional 6×6 initial covariance replacing ``config.initial_variances``
+            (e.g. the covariance of an ML start-up, see ``from_motions``).
     """
 
-    def __init__(self, X_CE_init, P0=None, process_cov=None, rotation_sigma: float = 0.1,
-                 translation_sigma: float = 0.1, noise_model: str = "so3",
-                 orthonormalization: str = "svd", gate_probability: float | None = 0.999,
-                 iterations: int = 3, max_consecutive_rejections: int | None = 5):
+    _LAYOUT = VectorLayout(X_CE=12, P=36, prev=24, has_prev=1,
+                           counters=EstimatorBase._COUNTERS.size)
+
+    def __init__(self, config: ManifoldFilter, X_CE_init, X_CE_covariance=None):
+        self.config = config.validated()
         self._estimate = as_transform(X_CE_init, "X_CE_init")
-        super().__init__(P0, process_cov, rotation_sigma, translation_sigma, noise_model,
-                         gate_probability, iterations, max_consecutive_rejections,
-                         orthonormalization)
+        self._P = (np.diag(self.config.initial_variances) if X_CE_covariance is None else
+                   check_covariance(X_CE_covariance, "X_CE_covariance", 6))
+        self._setup()
+        self._prev = None
+        self._init_counters()
+
+    def _setup(self) -> None:
+        c = self.config
+        self._Rn = _noise_covariance(c.rotation_sigma, c.translation_sigma)
+        self._G1 = np.diag(c.process_variances) if c.process_variances else np.zeros((6, 6))
+        self._gate = gate_threshold(c.gate_probability, 6)
+        self._min_rotation = math.radians(c.min_rotation_deg)
+        self._excitation_sigma = c.rotation_sigma
 
     _residual = staticmethod(motion_residual)
     _retract = staticmethod(retract_pose)
 
     @classmethod
-    def from_motions(cls, A_list, B_list, rotation_sigma: float, translation_sigma: float,
-                     noise_model: str = "so3", method: str = "park", **kwargs):
+    def from_motions(cls, config: ManifoldFilter, A_list, B_list, method: str = "park",
+                     coefficient_noise: bool = False):
         """A filter started consistently from a short buffer of motion pairs (e.g. the first
         10): ``ml.robust_initial_estimate`` (outlier-screened classical solution refined to the
-        ML estimate) gives both ``X_CE_init`` and ``P0``; feed the filter the motions that
-        follow. This is the estimator ``handeye-drake benchmark accuracy`` measures as
-        ``manifold_ml_start``. The start-up result (with its ``inliers`` mask) is kept as
-        ``start_up``. Other keyword arguments go to the constructor."""
+        ML estimate) gives both the initial X_CE and its covariance; feed the filter the motions
+        that follow. The start-up result (with its ``inliers`` mask) is kept as ``start_up``.
+        ``coefficient_noise``: the measured R_A carry the paper's coefficient noise (of std
+        √2 · config.rotation_sigma); the start-up then uses that likelihood exactly."""
         from .ml import robust_initial_estimate
-        start = robust_initial_estimate(A_list, B_list, rotation_sigma, translation_sigma,
-                                        noise_model, method)
-        f = cls(start.X_CE, P0=start.covariance, rotation_sigma=rotation_sigma,
-                translation_sigma=translation_sigma, noise_model=noise_model, **kwargs)
+        c = config.validated()
+        if coefficient_noise:
+            start = robust_initial_estimate(A_list, B_list, math.sqrt(2.0) * c.rotation_sigma,
+                                            c.translation_sigma, "paper", method)
+        else:
+            start = robust_initial_estimate(A_list, B_list, c.rotation_sigma,
+                                            c.translation_sigma, "so3", method)
+        f = cls(c, start.X_CE, X_CE_covariance=start.covariance)
         f.start_up = start
         return f
 
-    @staticmethod
-    def _finite_parts(X):
-        return (X,)
-
-    def update(self, A, B) -> bool:
-        """Fuses one motion pair; returns False if the NIS gate rejected it (the estimate is then
-        unchanged). Raises ValueError on bad input, leaving the state as it was."""
+    # ------------------------------------------------------------------------------- updates
+    def update_motion(self, A, B) -> bool:
+        """Fuses one motion pair; False if the NIS gate rejected it. Raises ValueError on bad
+        input, leaving the state as it was."""
         A = as_transform(A, "A", rigid=False)
         B = as_transform(B, "B", rigid=True)
-        if np.linalg.svd(A[:3, :3], compute_uv=False)[-1] < 1e-6:
-            raise ValueError("A: rotation block is singular, not a (noisy) rotation")
-        R_Am = orthonormalize_unchecked(A[:3, :3], self._orthonormalization)
-        return self._update((R_Am, A[:3, 3], B[:3, :3], B[:3, 3]))
+        return self._update_motion(_measured_rotation(A[:3, :3], "A"), A[:3, 3], B)
 
-    def _hand_eye(self) -> np.ndarray:
+    def _update_motion(self, R_A, t_A, B) -> bool:
+        fused = self._gated_update((R_A, t_A, B[:3, :3], B[:3, 3]), self._Rn, self._G1)
+        if fused:
+            self._excitation.add(rotation_log(B[:3, :3]))
+        return fused
+
+    def update(self, X_BE, X_CT, X_CT_covariance=None) -> bool:
+        """Forms the motion pair since the previous usable sample and fuses it (the first
+        sample, and samples within ``min_rotation_deg`` of the previous one, are skipped)."""
+        return self._update(*_check_sample(X_BE, X_CT))
+
+    def _update(self, X_BE, X_CT) -> bool:
+        if self._prev is None:
+            self._prev = (X_BE, X_CT)
+            self._num_skipped += 1
+            return False
+        X_BE0, X_CT0 = self._prev
+        B = inverse(X_BE0) @ X_BE
+        if self._min_rotation and rotation_angle(B[:3, :3]) < self._min_rotation:
+            self._num_skipped += 1
+            return False
+        # General inverse: measured poses may be non-orthonormal (coefficient noise, or poses
+        # chained from noisy motions); the motion's rotation is projected afterwards.
+        A = X_CT0 @ np.linalg.inv(X_CT)
+        fused = self._update_motion(orthonormalize_unchecked(A[:3, :3], "svd"), A[:3, 3], B)
+        self._prev = (X_BE, X_CT)
+        return fused
+
+    def _X_CE_hat(self) -> np.ndarray:
         return self._estimate
+
+    @property
+    def state(self) -> np.ndarray:
+        """[vec_row(R_X); t_X] of X_CE, the layout of ``HandEyeKalmanFilter.state``."""
+        return pose_to_vector(self._estimate)
+
+    # ------------------------------------------------------------------------------ vector
+    @classmethod
+    def vector_size(cls, config=None) -> int:
+        return cls._LAYOUT.size
+
+    def to_vector(self) -> np.ndarray:
+        prev = (np.zeros(24) if self._prev is None else
+                np.concatenate([pose_to_vector(self._prev[0]), pose_to_vector(self._prev[1])]))
+        return self._LAYOUT.pack(X_CE=pose_to_vector(self._estimate), P=self._P, prev=prev,
+                                 has_prev=float(self._prev is not None),
+                                 counters=self._counters_vector())
+
+    @classmethod
+    def from_vector(cls, config: ManifoldFilter, vector):
+        """The filter whose ``to_vector()`` is ``vector``; ``config`` must be validated (it is
+        not re-checked: this is the Drake system's per-step path)."""
+        v = cls._LAYOUT.unpack(vector)
+        f = cls.__new__(cls)
+        f.config = config
+        f._setup()
+        f._estimate = vector_to_pose(v["X_CE"])
+        f._P = v["P"].reshape(6, 6).copy()
+        f._prev = ((vector_to_pose(v["prev"][:12]), vector_to_pose(v["prev"][12:]))
+                   if v["has_prev"][0] else None)
+        f._set_counters(v["counters"])
+        return f
 
 
 class HandEyeTargetFilter(_ErrorStateFilter):
     """Error-state EKF for AX = ZB on synchronized poses: X_CE and the fixed target X_BT.
 
     ``update(X_BE, X_CT)`` fuses one synchronized sample: the robot pose (E in base, exact) and
-    the measured target pose in the camera, modelled as
-    X_CT = X_CE · X_BE⁻¹ · X_BT ⊕ noise (rotation-vector noise on R_CT for "so3", coefficient
-    noise for "paper"; additive translation noise). The error state is
+    the measured target pose in the camera, modelled as X_CT = X_CE · X_BE⁻¹ · X_BT ⊕ noise
+    (rotation-vector noise on R_CT, additive translation noise; or the sample's own 6×6
+    covariance with ``config.use_measurement_covariance``). The error state is
     [δθ_CE; δt_CE; δθ_BT; δt_BT] (12), so ``covariance`` is 12×12; ``X_CE_covariance`` is its
     6×6 hand-eye block.
 
-    The target pose needs no prior: ``X_BT_init`` defaults to the one implied by the first
-    sample and the initial hand-eye estimate, with ``target_prior_cov`` (default: 1 rad² and
-    1 length² per axis, i.e. nearly unknown).
+    The target pose needs no prior: without ``X_BT_init`` the first sample places it (the pose
+    implied by that sample and the initial hand-eye estimate, with
+    ``config.target_prior_variances``) and is not fused otherwise. A refused update (bad input,
+    gate) leaves the whole state untouched.
 
-    The NIS gate and its lock-out recovery (``max_consecutive_rejections``) work as in
-    ``ManifoldHandEyeFilter``.
+    Args:
+        config: ``configs.TargetFilter`` (sigmas set).
+        X_CE_init: initial estimate (4×4 rigid or RigidTransform).
+        X_BT_init: optional initial target pose in the robot base.
+        X_CE_covariance: optional 6×6 initial covariance of X_CE (replaces
+            ``config.initial_variances``).
     """
 
-    _dim = 12
+    _LAYOUT = VectorLayout(X_CE=12, X_BT=12, P=144, target_known=1, R_BE_ref=9,
+                           counters=EstimatorBase._COUNTERS.size)
 
-    def __init__(self, X_CE_init, P0=None, process_cov=None, rotation_sigma: float = 0.01,
-                 translation_sigma: float = 0.001, noise_model: str = "so3",
-                 orthonormalization: str = "svd", gate_probability: float | None = 0.999,
-                 iterations: int = 3, X_BT_init=None, target_prior_cov=None,
-                 max_consecutive_rejections: int | None = 5):
+    def __init__(self, config: TargetFilter, X_CE_init, X_BT_init=None, X_CE_covariance=None):
+        self.config = config.validated()
         X_CE = as_transform(X_CE_init, "X_CE_init")
-        P_hand_eye = check_covariance(np.eye(6) if P0 is None else P0, "P0", 6)
-        P_target = check_covariance(1.0 if target_prior_cov is None else target_prior_cov,
-                                    "target_prior_cov", 6)
-        G1 = check_covariance(0.0 if process_cov is None else process_cov, "process_cov", 6)
-        super().__init__(scipy.linalg.block_diag(P_hand_eye, P_target), None, rotation_sigma,
-                         translation_sigma, noise_model, gate_probability, iterations,
-                         max_consecutive_rejections, orthonormalization)
-        self._G1 = scipy.linalg.block_diag(G1, np.zeros((6, 6)))
+        P_hand_eye = (np.diag(self.config.initial_variances) if X_CE_covariance is None else
+                      check_covariance(X_CE_covariance, "X_CE_covariance", 6))
+        self._P = scipy.linalg.block_diag(P_hand_eye, np.diag(self.config.target_prior_variances))
         self._target_known = X_BT_init is not None
         X_BT = np.eye(4) if X_BT_init is None else as_transform(X_BT_init, "X_BT_init")
         self._estimate = (X_CE, X_BT)
+        self._R_BE_ref = None
+        self._setup()
+        self._init_counters()
+
+    def _setup(self) -> None:
+        c = self.config
+        self._Rn = _noise_covariance(c.rotation_sigma, c.translation_sigma)
+        self._G1 = np.zeros((12, 12))
+        if c.process_variances:
+            self._G1[:6, :6] = np.diag(c.process_variances)
+        self._gate = gate_threshold(c.gate_probability, 6)
+        self._excitation_sigma = c.rotation_sigma
 
     _residual = staticmethod(pose_residual)
     _retract = staticmethod(retract_pose_pair)
 
-    @staticmethod
-    def _finite_parts(est):
-        return est
+    def update(self, X_BE, X_CT, X_CT_covariance=None) -> bool:
+        """Fuses one synchronized sample; False if the NIS gate rejected it (the state is then
+        unchanged). ``X_CT_covariance``: the sample's 6×6 covariance of [δθ; δt] of X_CT, used
+        when ``config.use_measurement_covariance``. Raises ValueError on bad input."""
+        X_BE, X_CT = _check_sample(X_BE, X_CT)
+        if X_CT_covariance is not None:
+            X_CT_covariance = check_covariance(X_CT_covariance, "X_CT_covariance", 6)
+        return self._update(X_BE, X_CT, X_CT_covariance)
 
-    def update(self, X_BE, X_CT) -> bool:
-        """Fuses one synchronized sample; returns False if the NIS gate rejected it."""
-        X_BE = as_transform(X_BE, "X_BE", rigid=True)
-        X_CT = as_transform(X_CT, "X_CT", rigid=False)
-        if np.linalg.svd(X_CT[:3, :3], compute_uv=False)[-1] < 1e-6:
-            raise ValueError("X_CT: rotation block is singular, not a (noisy) rotation")
-        R_CTm = orthonormalize_unchecked(X_CT[:3, :3], self._orthonormalization)
+    def _update(self, X_BE, X_CT, X_CT_covariance=None) -> bool:
+        R_CTm = orthonormalize_unchecked(X_CT[:3, :3], "svd")
         if not self._target_known:
-            # The target pose implied by this sample and the current hand-eye estimate.
+            # The first sample only places the target (X_BT implied by it and the current
+            # hand-eye estimate), keeping its prior covariance: fusing it would make a first
+            # sample that happens to be an outlier the reference every later sample is gated
+            # against.
             X_CE = self._estimate[0]
             self._estimate = (X_CE, X_BE @ inverse(X_CE) @ make_transform(R_CTm, X_CT[:3, 3]))
             self._target_known = True
-        return self._update((inverse(X_BE), R_CTm, X_CT[:3, 3]))
+            self._R_BE_ref = X_BE[:3, :3].copy()
+            self._num_skipped += 1
+            return False
+        Rn = (X_CT_covariance if self.config.use_measurement_covariance
+              and X_CT_covariance is not None else self._Rn)
+        fused = self._gated_update((inverse(X_BE), R_CTm, X_CT[:3, 3]), Rn, self._G1)
+        if fused:
+            if self._R_BE_ref is None:  # X_BT_init given: no placing sample
+                self._R_BE_ref = X_BE[:3, :3].copy()
+            self._excitation.add(rotation_vector_between(self._R_BE_ref, X_BE[:3, :3]))
+        return fused
 
-    def _hand_eye(self) -> np.ndarray:
+    def _X_CE_hat(self) -> np.ndarray:
         return self._estimate[0]
 
     @property
     def X_BT(self) -> np.ndarray:
         """Estimate of the target pose in the robot base."""
         return self._estimate[1].copy()
+
+    @property
+    def state(self) -> np.ndarray:
+        """[vec_row(R_X); t_X] of X_CE."""
+        return pose_to_vector(self._estimate[0])
+
+    def diagnostics(self) -> list[str]:
+        out = super().diagnostics()
+        if self._num_updates == 0 and self._num_rejected:
+            out.append(f"no sample accepted: all {self._num_rejected} were rejected (the first "
+                       "samples disagree with the start estimate beyond their noise)")
+        return out
+
+    # ------------------------------------------------------------------------------ vector
+    @classmethod
+    def vector_size(cls, config=None) -> int:
+        return cls._LAYOUT.size
+
+    def to_vector(self) -> np.ndarray:
+        X_CE, X_BT = self._estimate
+        return self._LAYOUT.pack(
+            X_CE=pose_to_vector(X_CE), X_BT=pose_to_vector(X_BT), P=self._P,
+            target_known=float(self._target_known),
+            R_BE_ref=np.full(9, np.nan) if self._R_BE_ref is None else self._R_BE_ref,
+            counters=self._counters_vector())
+
+    @classmethod
+    def from_vector(cls, config: TargetFilter, vector):
+        """The filter whose ``to_vector()`` is ``vector``; ``config`` must be validated."""
+        v = cls._LAYOUT.unpack(vector)
+        f = cls.__new__(cls)
+        f.config = config
+        f._setup()
+        f._estimate = (vector_to_pose(v["X_CE"]), vector_to_pose(v["X_BT"]))
+        f._P = v["P"].reshape(12, 12).copy()
+        f._target_known = bool(v["target_known"][0])
+        f._R_BE_ref = None if np.isnan(v["R_BE_ref"][0]) else v["R_BE_ref"].reshape(3, 3).copy()
+        f._set_counters(v["counters"])
+        return f

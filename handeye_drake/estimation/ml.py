@@ -1,4 +1,4 @@
-"""Maximum-likelihood batch reference for the hand-eye transform (beyond PAPER §9).
+"""Maximum-likelihood batch reference for the hand-eye transform (beyond docs/method.md §9).
 
 Given every measurement at once, the best any estimator can do under a known sensor noise model
 is the maximum-likelihood (ML) estimate: the minimizer of the sum of squared residuals *whitened
@@ -13,14 +13,14 @@ classical closed-form methods are measured against:
 
 Two forms:
 
-- ``refine_ml``: motion pairs (A_k, B_k) with A_k X = X B_k (PAPER §2), unknown X = X_CE. The
+- ``refine_ml``: motion pairs (A_k, B_k) with A_k X = X B_k (docs/method.md §2), unknown X = X_CE. The
   noise is on the measured camera motion A (the paper's simulations):
 
   * ``"so3"``: R_A = exp(n_r) R̃_A with n_r ~ N(0, σ_r² I3) (rad), t_A = t̃_A + n_t. Residual
     [log(R_A R̂_Aᵀ)/σ_r; (t_A − t̂_A)/σ_t]. (Exact ML up to the Jacobian of the exponential map
     in the density of R_A, a factor 1 + O(σ_r²).)
   * ``"paper"``: R_A = R̃_A + Δ, Δ's 9 coefficients i.i.d. N(0, σ_r²), t_A = t̃_A + n_t
-    (PAPER §5). Residual [vec_row(R_A − R̂_A)/σ_r; (t_A − t̂_A)/σ_t] on the raw, non-orthonormal
+    (docs/method.md §5). Residual [vec_row(R_A − R̂_A)/σ_r; (t_A − t̂_A)/σ_t] on the raw, non-orthonormal
     measured R_A — the exact Gaussian ML residual of that model.
 
   with the prediction R̂_A = R_X R_B R_Xᵀ, t̂_A = R_X t_B + t_X − R̂_A t_X (exact given X and B).
@@ -52,12 +52,25 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from .manifold import inverse_tangent_jacobian, rotation_noise_variance
-from .se3 import inverse, make_transform, rotation_exp
+from .se3 import inverse, inverse_tangent_jacobian, make_transform, rotation_exp
 from .solvers import METHODS, MIN_ROTATION_ANGLE, solve_ax_xb
 from .validation import as_transform, as_transform_list, check_positive, check_same_length
 
 NOISE_MODELS = ("so3", "paper")
+
+
+def rotation_noise_variance(noise_model: str, rotation_sigma: float) -> float:
+    """Variance of each rotation-vector component of a measured rotation's error.
+
+    "so3": the sensor perturbs the rotation vector: σ². "paper": i.i.d. N(0, σ²) on the 9
+    coefficients of R; after projection onto SO(3) only the skew part of Δ Rᵀ survives, whose
+    axial vector has variance σ²/2 per component.
+    """
+    if noise_model == "so3":
+        return rotation_sigma**2
+    if noise_model == "paper":
+        return 0.5 * rotation_sigma**2
+    raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
 
 #: Smallest eigenvalue of JᵀJ, relative to the largest, for X to count as determined.
 _MIN_RELATIVE_INFORMATION = 1e-13
@@ -74,7 +87,7 @@ class MLResult:
             R = exp(δθ) R̂, t = t̂ + δt (``manifold``'s convention); for the pose form, the X_CE
             block of ``full_covariance`` (X_BT marginalized).
         X_EC_covariance: the same uncertainty for X_EC, through
-            ``manifold.inverse_tangent_jacobian``.
+            ``se3.inverse_tangent_jacobian``.
         X_EC_rotation_std_deg: standard deviations of X_EC's rotation error about E's axes (deg).
         X_EC_translation_std: standard deviations of t_EC's coordinates (length units, in E).
         cost: Σ r² of the whitened residuals at the estimate (χ² with m − n degrees of freedom
@@ -542,3 +555,33 @@ def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
     cov = _covariance(H, "X_BE_list, X_CT_list")
     return _result(X_CE, cov[:6, :6].copy(), r, njev, _pose_residual_summary((X_CE, X_BT), data),
                    X_BT=X_BT, full_cov=cov)
+
+
+def pose_jacobians(X_EB, X_CE, X_BT, rotation_sigma: float, translation_sigma: float,
+                   noise_model: str = "so3") -> np.ndarray:
+    """Per-sample whitened Jacobians of the pose form at noise-free measurements.
+
+    For each robot pose, the Jacobian of the whitened residual of ``refine_ml_poses`` with
+    respect to [δθ_CE; δt_CE; δθ_BT; δt_BT] (left perturbations, ``manifold``'s convention),
+    evaluated where the measurement equals its prediction X_CE · X_EB_k · X_BT. Σ_k H_kᵀ H_k is
+    then the Fisher information of the samples (what ``estimation.observability`` analyses and
+    ``estimation.planning`` maximises); it depends on the robot poses, the rotation of X_CE and
+    the translations of X_CE and X_BT only.
+
+    Eye-to-hand (camera fixed in the base, target on the flange) is the same model with
+    X_EB → X_BE, X_CE → X_CB and X_BT → X_ET.
+
+    Args:
+        X_EB: (K, 4, 4) robot poses inverted (base in end-effector), rigid.
+        X_CE, X_BT: the linearization point (4×4 rigid).
+        rotation_sigma, translation_sigma, noise_model: as ``refine_ml_poses``.
+
+    Returns:
+        (K, m, 12) array, m = 6 ("so3") or 12 ("paper").
+    """
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    X_EB = np.asarray(X_EB, dtype=float).reshape(-1, 4, 4)
+    R_EB, t_EB = X_EB[:, :3, :3], X_EB[:, :3, 3]
+    R_CT, t_CT, _ = _pose_prediction(X_CE, X_BT, R_EB, t_EB)
+    _, H = _pose_terms((X_CE, X_BT), (R_CT, R_CT, t_CT, R_EB, t_EB), noise_model, sr, st)
+    return H.reshape(len(X_EB), -1, 12)

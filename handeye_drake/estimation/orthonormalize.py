@@ -1,4 +1,4 @@
-"""Projection of an estimated 3×3 block onto SO(3) (PAPER §6).
+"""Projection of an estimated 3×3 block onto SO(3) (docs/method.md §6).
 
 The filter state keeps the 9 rotation coefficients unconstrained; they are projected outside the
 filter loop. Three projections are offered:
@@ -70,20 +70,31 @@ def orthonormalize_unchecked(M: np.ndarray, method: str = "svd") -> np.ndarray:
 
 
 def orthonormalize(M, method: str = "svd") -> np.ndarray:
-    """Nearest proper rotation (det = +1) to a full-rank 3×3 matrix.
+    """Nearest proper rotation (det = +1) to a full-rank 3×3 matrix with det > 0.
 
     Args:
         M: a 3×3 array (e.g. the rows i, j, k of R_X from the filter state, stacked).
         method: "svd", "qr" or "horn" (see the module docstring).
 
     Raises:
-        ValueError: unknown method, wrong shape, non-finite or rank-deficient M.
+        ValueError: unknown method, wrong shape, non-finite or rank-deficient M, or a reflection
+            (det M < 0): the "nearest rotation" of a reflection flips an axis arbitrarily (for
+            diag(1, 1, −1) it is the identity), which would turn a mirrored frame into a
+            confident wrong answer.
     """
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     M = as_matrix(M, "M", (3, 3))
+    scale = float(np.abs(M).max())
+    if scale == 0.0:
+        raise ValueError("M: the zero matrix has no nearest rotation")
+    M = M / scale  # the projection is scale-invariant; this keeps every product finite
     s = np.linalg.svd(M, compute_uv=False)
-    if s[0] == 0 or s[2] / s[0] < 1e-12:
-        raise ValueError(f"M: rank-deficient 3×3 matrix (singular values {s.tolist()}), "
-                         "no unique nearest rotation")
+    if s[2] / s[0] < 1e-12:
+        raise ValueError(f"M: rank-deficient 3×3 matrix (relative singular values "
+                         f"{(s / s[0]).tolist()}), no unique nearest rotation")
+    det = float(np.linalg.det(M))
+    if det < 0:
+        raise ValueError("M: a reflection (det < 0), not a (noisy) rotation: a mirrored axis "
+                         "(right- vs left-handed frame, or a flipped sign) in the data?")
     return orthonormalize_unchecked(M, method)

@@ -92,3 +92,19 @@ def pose_to_vector(X) -> np.ndarray:
 def vector_to_pose(v) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     return make_transform(v[:9].reshape(3, 3), v[9:12])
+
+
+def retract_pose(X, delta) -> np.ndarray:
+    """X ⊕ δ with δ = [δθ; δt]: R ← exp([δθ]×) R, t ← t + δt (the filters' error state)."""
+    return make_transform(rotation_exp(delta[:3]) @ X[:3, :3], X[:3, 3] + delta[3:6])
+
+
+def inverse_tangent_jacobian(X_CE) -> np.ndarray:
+    """6×6 J with δ_EC ≈ J δ_CE for X_EC = inv(X_CE), both perturbations of the form
+    R = exp(δθ) R̂, t = t̂ + δt: δθ_EC = −Rᵀ δθ, δt_EC = −Rᵀ [t]× δθ − Rᵀ δt."""
+    R, t = X_CE[:3, :3], X_CE[:3, 3]
+    J = np.zeros((6, 6))
+    J[:3, :3] = -R.T
+    J[3:, :3] = -R.T @ skew(t)
+    J[3:, 3:] = -R.T
+    return J

@@ -1,6 +1,6 @@
 """Classical (batch) hand-eye solvers of AX = XB, cross-checked against OpenCV.
 
-Frames (PAPER §2): the robot reports ``X_BE`` (end-effector E in robot base B, OpenCV's
+Frames (docs/method.md §2): the robot reports ``X_BE`` (end-effector E in robot base B, OpenCV's
 "gripper→base"), the camera measures ``X_CT`` (target T in camera C, OpenCV's "target→camera").
 A camera motion A = X_{CiCj} and the matching end-effector motion B = X_{EiEj} between two samples
 i, j satisfy
@@ -24,7 +24,7 @@ order in the noise), then returning X_CE = inv(Y):
   Translation as in "tsai".
 - "horaud": Horaud–Dornaika 1995, quaternion form q_B * q = q * q_A: q is the eigenvector of the
   smallest eigenvalue of Σ (Q(q_B) − W(q_A))ᵀ (Q(q_B) − W(q_A)). Translation as in "tsai".
-- "andreff": the paper's linear model (PAPER §3, ``linear_model.linear_system``) stacked over all
+- "andreff": the paper's linear model (docs/method.md §3, ``linear_model.linear_system``) stacked over all
   motions, for X = X_CE. As in Andreff et al. 2001 the rotation comes from the homogeneous part:
   the right singular vector of the smallest singular value of the stacked 9K×9 block
   [I9 − R_A ⊗ R_B], reshaped row-major, scaled by sign(det)/|det|^{1/3} (so det = +1) and
@@ -296,7 +296,10 @@ def _solve(A: list, B: list, method: str, label: Callable[[int], str],
            min_angle: float) -> np.ndarray:
     A, B = np.array(A, dtype=float), np.array(B, dtype=float)
     _check_motions(A, B, label, min_angle)
-    X_CE = _SOLVERS[method](A, B)
+    # Numerically degenerate input (e.g. subnormal translations) may overflow inside a solver;
+    # that is detected on the result and reported, not warned about.
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        X_CE = _SOLVERS[method](A, B)
     if not np.all(np.isfinite(X_CE)):
         raise ValueError(f"{method}: numerically degenerate motions, the solution is not finite")
     return X_CE

@@ -9,13 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Tolerance on ‖RᵀR − I‖_F (and |det R − 1|) for a matrix to count as a rotation. Loose enough
-#: for poses stored in float32 or printed with 6 decimals, tight enough to catch a scaled or
-#: sheared matrix.
-ROTATION_TOLERANCE = 1e-5
-
-#: Largest accepted positive scalar (sigmas, periods, gains): its square must stay finite.
-MAX_MAGNITUDE = 1e150
+from .defaults import MAX_MAGNITUDE, MAX_POSE_MAGNITUDE, ROTATION_TOLERANCE  # noqa: F401
 
 
 def as_matrix(value, name: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -59,7 +53,14 @@ def as_transform(X, name: str, rigid: bool = True, tol: float = ROTATION_TOLERAN
     if hasattr(X, "GetAsMatrix4"):
         X = X.GetAsMatrix4()
     M = as_matrix(X, name, (4, 4))
-    if not np.allclose(M[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+    big = float(np.abs(M).max())
+    if big > MAX_POSE_MAGNITUDE:
+        raise ValueError(f"{name}: entries up to {big:.3g} are implausibly large for a pose "
+                         f"(limit {MAX_POSE_MAGNITUDE:g}; wrong units?)")
+    if not rigid and np.abs(M[:3, :3]).max() > 10.0:
+        raise ValueError(f"{name}: rotation block has entries up to "
+                         f"{np.abs(M[:3, :3]).max():.3g}, not a (noisy) rotation")
+    if np.abs(M[3] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-9:
         raise ValueError(f"{name}: last row of a homogeneous transform must be [0, 0, 0, 1], "
                          f"got {M[3].tolist()}")
     if rigid:

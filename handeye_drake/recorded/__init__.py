@@ -1,12 +1,16 @@
-"""Hand-eye calibration of real robots from recorded pose streams (the ``calibrate`` command).
+"""Reading recorded robot and camera data, aligning it in time, forming motion pairs, and writing
+the result where a robot cell uses it (the library under ``handeye_drake.apps.calibrate``).
 
 - ``formats``: readers of TUM, CSV-matrix and OpenCV-YAML pose files into validated
   ``PoseStream``s (robot: X_BE, end-effector in base; camera: X_CT, target in camera);
+- ``bags``: robot (tf), camera (pose topic or tf) streams, images and CameraInfo from ROS 1/2
+  bags without ROS (``read_bag``);
 - ``align``: SLERP/linear interpolation of the robot pose at the camera instants and estimation of
   the constant clock offset between the streams;
 - ``selection``: motion pairs (consecutive + wide), screw-angle and residual outlier rejection,
   classical solution with held-out validation, bootstrap covariance;
-- ``calibrate``: the pipeline, its JSON/PNG outputs and the ``calibrate`` subcommand;
+- ``exports``: the result as URDF/xacro, a ROS 2 launch file and command, Drake model directives
+  and CameraConfig, JSON and TUM (``export_calibration``);
 - ``example``: the generator of the shipped example recording (``handeye_drake/data``).
 
 Nothing here imports Drake.
@@ -14,8 +18,8 @@ Nothing here imports Drake.
 
 from .align import (AlignedSamples, PoseInterpolator, TimeOffsetEstimate, UnobservableTimeOffset,
                     align_streams, estimate_time_offset, interpolate_poses)
-from .calibrate import (CalibrationResult, add_calibrate_parser, calibrate_files,
-                        calibrate_streams, run_calibrate_command, write_outputs)
+from .bags import BagData, CameraInfo, read_bag
+from .exports import export_calibration
 from .formats import (FORMATS, PoseStream, parse_csv_matrix, parse_opencv_yaml, parse_poses,
                       parse_tum, pose_stream, read_poses)
 from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs, pair_residuals,
@@ -24,7 +28,8 @@ from .selection import (InconsistentMotions, MotionPairs, RobustFit, form_pairs,
 __all__ = [
     "FORMATS",
     "AlignedSamples",
-    "CalibrationResult",
+    "BagData",
+    "CameraInfo",
     "InconsistentMotions",
     "MotionPairs",
     "PoseInterpolator",
@@ -32,11 +37,9 @@ __all__ = [
     "RobustFit",
     "TimeOffsetEstimate",
     "UnobservableTimeOffset",
-    "add_calibrate_parser",
     "align_streams",
-    "calibrate_files",
-    "calibrate_streams",
     "estimate_time_offset",
+    "export_calibration",
     "form_pairs",
     "interpolate_poses",
     "pair_residuals",
@@ -45,8 +48,7 @@ __all__ = [
     "parse_poses",
     "parse_tum",
     "pose_stream",
+    "read_bag",
     "read_poses",
     "robust_hand_eye",
-    "run_calibrate_command",
-    "write_outputs",
 ]

@@ -24,8 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..estimation.se3 import inverse, make_transform, quat_wxyz, rotation_exp, \
-    rotation_from_rpy, rpy
+from ..estimation.se3 import (
+    inverse,
+    make_transform,
+    quat_wxyz,
+    rotation_exp,
+    rotation_from_rpy,
+    rpy,
+)
 
 ROBOT_RATE = 50.0
 CAMERA_RATE = 15.0

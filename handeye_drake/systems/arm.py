@@ -36,7 +36,7 @@ from pydrake.multibody.inverse_kinematics import (
     DoDifferentialInverseKinematics,
 )
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
@@ -61,6 +61,9 @@ UR5E_HOME_Q = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
 #: gravity torque / kp ≲ 0.2 mrad at the UR5e's home pose (20 N·m on shoulder and elbow).
 DEFAULT_KP = 1.0e5
 DEFAULT_KD = 2.0e3
+
+#: The arm's plant: discrete (SAP applies the PD gains implicitly), 2 ms.
+DEFAULT_PLANT_CONFIG = MultibodyPlantConfig(time_step=0.002)
 
 _STATUS_SOLUTION_FOUND = float(int(DifferentialInverseKinematicsStatus.kSolutionFound))
 _STATUS_NO_SOLUTION = float(int(DifferentialInverseKinematicsStatus.kNoSolutionFound))
@@ -132,10 +135,11 @@ def _parse_arm(plant: MultibodyPlant, urdf, base_frame, X_WB):
     return model_file, X_WB, model_instance
 
 
-def add_arm(builder: DiagramBuilder, time_step: float = 0.002, urdf=None,
-            base_frame: str = "base_link", ee_frame: str = "tool0", X_WB=None,
+def add_arm(builder: DiagramBuilder, plant_config: MultibodyPlantConfig | None = None,
+            urdf=None, base_frame: str = "base_link", ee_frame: str = "tool0", X_WB=None,
             kp=DEFAULT_KP, kd=DEFAULT_KD, q0=None, finalize: bool = True) -> ArmHandles:
-    """Adds a discrete MultibodyPlant + SceneGraph holding the arm to ``builder``.
+    """Adds a discrete MultibodyPlant + SceneGraph holding the arm to ``builder``, configured by
+    Drake's ``plant_config`` (default: ``DEFAULT_PLANT_CONFIG``, a 2 ms discrete plant).
 
     The base frame is welded to the world at ``X_WB`` (4×4 or RigidTransform; identity if None).
     Every joint actuator gets a PD controller (``kp``, ``kd``: scalars or one per actuator, in
@@ -148,8 +152,9 @@ def add_arm(builder: DiagramBuilder, time_step: float = 0.002, urdf=None,
     UR5e, the model's own defaults otherwise). With ``finalize=False`` the caller may add more
     models before calling ``plant.Finalize()``.
     """
-    time_step = check_positive(time_step, "time_step")
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step)
+    plant_config = DEFAULT_PLANT_CONFIG if plant_config is None else plant_config
+    check_positive(plant_config.time_step, "plant_config.time_step")
+    plant, scene_graph = AddMultibodyPlant(plant_config, builder)
     model_file, X_WB, model_instance = _parse_arm(plant, urdf, base_frame, X_WB)
     _check_frame(plant, ee_frame, "ee_frame", model_instance)
     # (GetJointActuatorIndices(model_instance) is empty before Finalize(); filter the full list.)

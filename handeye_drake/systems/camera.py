@@ -10,20 +10,20 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import LeafSystem
 
-from handeye_drake.estimation.se3 import inverse, pose_to_vector, vector_to_pose
-from handeye_drake.estimation.validation import (
+from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from ..estimation.validation import (
     ROTATION_TOLERANCE,
     as_matrix,
     as_transform,
     check_positive,
     rotation_defect,
 )
-from handeye_drake.vision.camera_model import (
+from ..vision.camera_model import (
     MIN_DEPTH,
     POSE_NOISE_MODELS,
     CameraIntrinsics,
-    as_points,
     apply_pose_noise,
+    as_points,
     project_points,
     target_visibility,
 )
@@ -39,7 +39,7 @@ class HandEyeCamera(LeafSystem):
     * the noisy pixels of the points (noise N(0, pixel_sigma²) per coordinate, on visible points),
     * which points are visible (in front of the camera and inside the image),
     * a noisy measurement of the target pose X_CT (what a pose-from-image estimator would return;
-      the camera motion A of PAPER.md §2 is built from two of them),
+      the camera motion A of docs/method.md §2 is built from two of them),
     * the true camera pose X_WC (for logging and visualization).
 
     Invisible points are reported through ``visible``; their ``features`` entries hold the
@@ -103,6 +103,29 @@ class HandEyeCamera(LeafSystem):
         self._visible_port = self.DeclareStateOutputPort("visible", self._visible_index)
         self._X_CT_port = self.DeclareStateOutputPort("X_CT_measured", self._X_CT_index)
         self._X_WC_port = self.DeclareStateOutputPort("X_WC", self._X_WC_index)
+
+
+    # Ports, as members so users can wire them by handle.
+    def get_X_WE_input_port(self):
+        return self._X_WE_port
+
+    def get_pixel_noise_input_port(self):
+        return self._pixel_noise_port
+
+    def get_pose_noise_input_port(self):
+        return self._pose_noise_port
+
+    def get_features_output_port(self):
+        return self._features_port
+
+    def get_visible_output_port(self):
+        return self._visible_port
+
+    def get_X_CT_output_port(self):
+        return self._X_CT_port
+
+    def get_X_WC_output_port(self):
+        return self._X_WC_port
 
     # Read-only accessors (numpy copies) for scenarios and tests.
     @property

@@ -1,4 +1,4 @@
-"""A source of synchronized robot and camera poses without an arm: PAPER §8's simulated motions.
+"""A source of synchronized robot and camera poses without an arm: docs/method.md §8's simulated motions.
 
 It first executes the given self-calibration motions (one per sample, with ``phase`` 0, 1, …),
 then random small robot motions (roll-pitch-yaw ~ N(0, rotation_sigma²), translation ~
@@ -67,14 +67,33 @@ class PaperMotionSource(LeafSystem):
         X_CT0 = inverse(X_BE0 @ self._X_EC) @ self._X_BT
         self._state_index = self.DeclareDiscreteState(
             np.concatenate([pose_to_vector(X_BE0), pose_to_vector(X_CT0), [0.0, 0.0]]))
-        self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._period, self._Step)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._period, self._UpdateSample)
         ticket = {self.discrete_state_ticket(self._state_index)}
-        self.DeclareVectorOutputPort("X_BE", 12, self._CalcXBE, prerequisites_of_calc=ticket)
-        self.DeclareVectorOutputPort("X_CT_measured", 12, self._CalcXCT,
+        self._X_BE_port = self.DeclareVectorOutputPort("X_BE", 12, self._CalcX_BE,
+                                                       prerequisites_of_calc=ticket)
+        self._X_CT_port = self.DeclareVectorOutputPort("X_CT_measured", 12, self._CalcX_CT,
                                      prerequisites_of_calc=ticket)
-        self.DeclareVectorOutputPort("phase", 1, self._CalcPhase, prerequisites_of_calc=ticket)
+        self._phase_port = self.DeclareVectorOutputPort("phase", 1, self._CalcPhase,
+                                                        prerequisites_of_calc=ticket)
 
-    def _Step(self, context, discrete_state):
+
+    # Ports, as members so users can wire them by handle.
+    def get_motion_noise_input_port(self):
+        return self._motion_noise_port
+
+    def get_pose_noise_input_port(self):
+        return self._pose_noise_port
+
+    def get_X_BE_output_port(self):
+        return self._X_BE_port
+
+    def get_X_CT_output_port(self):
+        return self._X_CT_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    def _UpdateSample(self, context, discrete_state):
         s = context.get_discrete_state(self._state_index).get_value()
         k = int(s[25])
         X_BE = make_transform(s[:9].reshape(3, 3), s[9:12])
@@ -94,10 +113,10 @@ class PaperMotionSource(LeafSystem):
         discrete_state.get_mutable_vector(self._state_index).SetFromVector(np.concatenate(
             [pose_to_vector(X_BE), pose_to_vector(X_CT_measured), [phase, k + 1]]))
 
-    def _CalcXBE(self, context, output: BasicVector):
+    def _CalcX_BE(self, context, output: BasicVector):
         output.SetFromVector(context.get_discrete_state(self._state_index).get_value()[:12])
 
-    def _CalcXCT(self, context, output: BasicVector):
+    def _CalcX_CT(self, context, output: BasicVector):
         output.SetFromVector(context.get_discrete_state(self._state_index).get_value()[12:24])
 
     def _CalcPhase(self, context, output: BasicVector):

@@ -1,4 +1,4 @@
-"""Visual-servo controller with a self-calibration prelude (PAPER.md §1 and §7).
+"""Visual-servo controller with a self-calibration prelude (docs/method.md §1 and §7).
 
 The control law itself is ``handeye_drake.vision.camera_model.ibvs_twist``; this module sequences
 the phases and wraps it as a sampled Drake system.
@@ -11,9 +11,9 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from handeye_drake.estimation.se3 import vector_to_pose
-from handeye_drake.estimation.validation import as_matrix, check_positive, rotation_defect
-from handeye_drake.vision.camera_model import (
+from ..estimation.se3 import vector_to_pose
+from ..estimation.validation import as_matrix, check_positive, rotation_defect
+from ..vision.camera_model import (
     MIN_DEPTH,
     CameraIntrinsics,
     SelfCalibrationMotion,
@@ -51,7 +51,7 @@ class VisualServoController(LeafSystem):
 
     Phases (by time, starting at t = 0): phase k < M executes ``self_calibration_motions[k]``
     (constant twist ``motion.twist_E()`` during ``motion.duration``, one after the other); from
-    t = Σ durations on, phase M is the servo law of PAPER.md §7,
+    t = Σ durations on, phase M is the servo law of docs/method.md §7,
 
         V_E = −λ · pinv(L_E) (s − s*),   L_E = end_effector_interaction_matrix(s, Z, K, X_CE)
 
@@ -152,6 +152,32 @@ class VisualServoController(LeafSystem):
         self._phase_port = self.DeclareStateOutputPort("phase", self._phase_index)
         self._error_port = self.DeclareStateOutputPort("feature_error", self._error_index)
         self._status_port = self.DeclareStateOutputPort("status", self._status_index)
+
+
+    # Ports, as members so users can wire them by handle.
+    def get_features_input_port(self):
+        return self._features_port
+
+    def get_visible_input_port(self):
+        return self._visible_port
+
+    def get_X_CT_input_port(self):
+        return self._X_CT_port
+
+    def get_X_CE_input_port(self):
+        return self._X_CE_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    def get_feature_error_output_port(self):
+        return self._error_port
+
+    def get_status_output_port(self):
+        return self._status_port
 
     @staticmethod
     def _check_speed_limit(value, name):

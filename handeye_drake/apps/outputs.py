@@ -1,0 +1,108 @@
+"""Where the commands write, and what they may overwrite.
+
+Policy, the same for every command (``simulate``, ``calibrate``, ``reproduce``, ...):
+
+- ``--out DIR`` must be a directory or not exist. It is checked — with every other output path —
+  before any computing starts, so a bad path never costs a run.
+- A new or empty directory is used as is. A directory holding this command's earlier output
+  (its ``.handeye-drake-output.json`` manifest names the command) is reused: the files the new run
+  writes replace the old ones, and the files of the earlier run that the new one does not write
+  again are removed, so no stale result sits beside fresh ones.
+- Any other non-empty directory is refused unless ``--force`` is given; even then, no file the
+  tool did not write is ever deleted or overwritten (a file of the same name is refused).
+- Files outside ``--out`` given explicitly (``--meshcat-html FILE``, ``--json FILE``) are written
+  only if they do not exist, unless ``--force``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+MANIFEST = ".handeye-drake-output.json"
+
+
+def _manifest(path: Path) -> dict | None:
+    try:
+        data = json.loads((path / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) and isinstance(data.get("files"), list) else None
+
+
+@dataclass
+class OutputDir:
+    """An output directory claimed by one command run (see the module docstring).
+
+    ``prepare_output_dir`` creates it; ``path(name)`` gives a file path inside it (refusing names
+    that belong to someone else); ``finish(written)`` writes the manifest and removes the earlier
+    run's files that were not written again.
+    """
+    root: Path
+    command: str
+    force: bool = False
+    earlier: list = field(default_factory=list)
+
+    def path(self, name: str) -> Path:
+        p = self.root / name
+        if p.exists() and name not in self.earlier and not p.is_dir():
+            raise ValueError(f"--out {self.root}: {name} exists and was not written by "
+                             f"'handeye-drake {self.command}'; not overwriting it (choose another "
+                             "--out)")
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def finish(self, written) -> None:
+        names = sorted({str(Path(w).resolve().relative_to(self.root.resolve()))
+                        for w in written if Path(w).resolve().is_relative_to(self.root.resolve())})
+        for stale in set(self.earlier) - set(names):
+            p = self.root / stale
+            if p.is_file():
+                p.unlink()
+        (self.root / MANIFEST).write_text(json.dumps(
+            {"command": self.command, "files": names}, indent=1) + "\n")
+
+
+def prepare_output_dir(out, command: str, force: bool = False) -> OutputDir:
+    """Checks and creates ``out`` for ``command`` (raises ValueError naming ``--out``)."""
+    root = Path(out)
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a directory")
+    earlier = []
+    if root.is_dir():
+        entries = [e for e in os.listdir(root) if e != MANIFEST]
+        manifest = _manifest(root)
+        if manifest is not None and manifest.get("command") == command:
+            earlier = [str(f) for f in manifest["files"]]
+        elif entries and not force:
+            owner = (f"the output of 'handeye-drake {manifest['command']}'" if manifest
+                     else "not an output directory of this tool")
+            raise ValueError(f"--out {out}: the directory is not empty and is {owner}; choose "
+                             "an empty or new directory, or pass --force (files the tool did not "
+                             "write are never overwritten or deleted)")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        probe = root / ".handeye-drake-write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise ValueError(f"--out {out}: cannot write there ({e.strerror or e})") from None
+    return OutputDir(root=root, command=command, force=force, earlier=earlier)
+
+
+def check_output_file(path, option: str, force: bool = False) -> Path:
+    """An explicit output file outside ``--out``: its directory must exist and be writable, and
+    the file must not exist (unless ``force``). Raises ValueError naming ``option``."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{option} {path}: is a directory, expected a file name")
+    if p.exists() and not force:
+        raise ValueError(f"{option} {path}: exists; not overwriting it (pass --force)")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"{option} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"{option} {path}: directory {parent} is not writable")
+    return p

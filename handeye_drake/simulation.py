@@ -1,0 +1,518 @@
+"""The closed loop (docs/method.md §7–§8) as one Drake Diagram, and a runner for it.
+
+    ┌──────────┐ desired_state ┌───────┐ body_poses ┌────────────┐ X_WE ┌────────┐
+    │ diff_ik  │──────────────▶│ plant │───────────▶│ ee_sensor  │─────▶│ camera │◀─ noise
+    └──────────┘               └───────┘            └────────────┘      └────────┘
+         ▲ V_WE_E_command                                │ X_BE            │ features, visible,
+    ┌────┴──────┐◀────────────────────────────────────────┼─────────────────┘ X_CT_measured
+    │ servo     │   phase ┌────────────┐ X_BE  ┌──────────▼──────────┐
+    │ (IBVS)    │────────▶│ calibrator │◀──────│ robot_pose_sampler  │ (ZeroOrderHold, camera clock)
+    └───────────┘◀────────└────────────┘       └─────────────────────┘
+          X_CE_estimate (the feedback of the design)
+
+``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
+simulates it and returns a ``ScenarioResult``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common import RandomDistribution, RandomGenerator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    RandomSource,
+    ZeroOrderHold,
+)
+
+from .estimation.errors import rotation_error_deg, translation_error_rel
+from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_pose
+from .scenario import Scenario, So3PoseNoise, transform_matrix
+from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
+from .systems.calibrator import (
+    STATUS_COLLECTING,
+    STATUS_FILTERING,
+    STATUS_INIT_FAILED,
+    HandEyeCalibrator,
+)
+from .systems.camera import HandEyeCamera
+from .systems.servo import SelfCalibrationMotion, VisualServoController
+from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
+
+#: Final RMS feature error (px) above which a run's servo counts as not converged.
+SERVO_CONVERGED_PX = 5.0
+
+
+def intrinsics_of(scenario: Scenario) -> CameraIntrinsics:
+    """The pinhole intrinsics of ``scenario.camera`` (Drake's CameraConfig + the axes angle)."""
+    s = scenario.camera.sensor
+    u0, v0 = s.principal_point()
+    return CameraIntrinsics(alpha_u=s.focal_x(), alpha_v=s.focal_y(),
+                            theta=np.radians(scenario.camera.axes_angle_deg), u0=u0, v0=v0,
+                            width=s.width, height=s.height)
+
+
+def camera_pose_on_hand(scenario: Scenario, plant) -> np.ndarray:
+    """The true X_EC = X_EP · X_PB · X_BC of ``scenario.camera.sensor`` (P its ``X_PB``
+    base frame, which must be fixed to the end-effector's body)."""
+    s = scenario.camera.sensor
+    X_PB = transform_matrix(s.X_PB, "camera.sensor.X_PB")
+    X_BC = transform_matrix(s.X_BC, "camera.sensor.X_BC")
+    parent = s.X_PB.base_frame or scenario.arm.ee_frame
+    if not plant.HasFrameNamed(parent):
+        raise ValueError(f"camera.sensor.X_PB.base_frame: no frame named {parent!r} on the arm")
+    frame_P = plant.GetFrameByName(parent)
+    frame_E = plant.GetFrameByName(scenario.arm.ee_frame)
+    if frame_P.body().index() not in {b.index() for b in plant.GetBodiesWeldedTo(frame_E.body())}:
+        raise ValueError(f"camera.sensor.X_PB.base_frame: {parent!r} is not fixed to the "
+                         f"end-effector {scenario.arm.ee_frame!r} (the camera must ride on the "
+                         "hand)")
+    context = plant.CreateDefaultContext()
+    X_EP = plant.CalcRelativeTransform(context, frame_E, frame_P).GetAsMatrix4()
+    return X_EP @ X_PB @ X_BC
+
+
+def desired_features(scenario: Scenario) -> np.ndarray:
+    """s* (2N px): the target points projected from the desired camera pose X_TC_desired."""
+    X_CT = inverse(transform_matrix(scenario.servo.X_TC_desired, "servo.X_TC_desired"))
+    p_TQ = np.asarray(scenario.target.points, dtype=float)
+    p_CQ = (X_CT[:3, :3] @ p_TQ.T).T + X_CT[:3, 3]
+    uv, in_front, in_image = project_points(p_CQ, intrinsics_of(scenario))
+    if not np.all(in_front & in_image):
+        raise ValueError("servo.X_TC_desired: some target points are behind the camera or "
+                         f"outside the image at the desired pose (visible: "
+                         f"{(in_front & in_image).astype(int).tolist()})")
+    return uv.reshape(-1)
+
+
+def add_noise_sources(builder, system, port_names, period: float) -> None:
+    """Feeds each named (Gaussian random) input port of ``system`` from its own
+    ``RandomSource`` "<port>_source", sampled every ``period`` so that each sample of the system
+    sees fresh noise; ``diagram.SetRandomContext`` then seeds them all."""
+    for name in port_names:
+        port = system.GetInputPort(name)
+        noise = builder.AddNamedSystem(f"{name}_source", RandomSource(
+            RandomDistribution.kGaussian, port.size(), period))
+        builder.Connect(noise.get_output_port(), port)
+
+
+def self_calibration_motions(scenario: Scenario) -> list[SelfCalibrationMotion]:
+    """The configured motions, mapped from the camera frame to E through the *guess* of X_EC
+    (the true one is unknown to the controller)."""
+    X_EC = scenario.X_EC_guess_matrix()
+    motions = []
+    for m in scenario.servo.self_calibration:
+        axis_C = np.asarray(m.axis_C, dtype=float)
+        axis_E = X_EC[:3, :3] @ (axis_C / np.linalg.norm(axis_C))
+        pivot_E = X_EC[:3, :3] @ np.array([0.0, 0.0, m.pivot_distance]) + X_EC[:3, 3]
+        motions.append(SelfCalibrationMotion(axis_E=axis_E, angle=np.radians(m.angle_deg),
+                                             pivot_E=pivot_E, duration=m.duration))
+    return motions
+
+
+@dataclass
+class ClosedLoop:
+    """The built diagram and handles to its subsystems."""
+    diagram: Diagram
+    plant: object
+    scene_graph: object
+    model_instance: object
+    driver: DifferentialIkDriver
+    ee_sensor: EndEffectorPoseSensor
+    camera: HandEyeCamera
+    servo: VisualServoController
+    calibrator: HandEyeCalibrator
+    X_EC_true: np.ndarray
+    loggers: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Arm:
+    handles: object
+    control_plant: object
+    driver: DifferentialIkDriver
+    ee_sensor: EndEffectorPoseSensor
+    q0: np.ndarray
+
+
+def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
+    """The arm's MultibodyPlant (``scenario.plant_config``), its differential-IK driver (taking
+    the servo's twist) and the end-effector pose sensor."""
+    a = scenario.arm
+    X_WB = transform_matrix(a.X_WB, "arm.X_WB")
+    q0 = np.radians(a.q0_deg)
+    urdf = a.urdf or None
+    control_plant = make_control_plant(urdf=urdf, base_frame=a.base_frame, X_WB=X_WB)
+    if len(q0) != control_plant.num_positions():
+        raise ValueError(f"arm.q0_deg: expected {control_plant.num_positions()} joint angles, "
+                         f"got {len(q0)}")
+    handles = add_arm(builder, plant_config=scenario.plant_config, urdf=urdf,
+                      base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
+    driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
+        control_plant, a.ee_frame, scenario.period / 3.0, q0))
+    builder.Connect(driver.get_desired_state_output_port(),
+                    handles.plant.get_desired_state_input_port(handles.model_instance))
+    ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
+        handles.plant, a.base_frame, a.ee_frame))
+    builder.Connect(handles.plant.get_body_poses_output_port(),
+                    ee_sensor.get_body_poses_input_port())
+    return _Arm(handles, control_plant, driver, ee_sensor, q0)
+
+
+def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true) -> HandEyeCamera:
+    """The camera selected by ``scenario.camera.model``, its noise sources, its X_WE input."""
+    model = scenario.camera.model
+    noise = model.pose_noise
+    if isinstance(noise, So3PoseNoise):
+        noise_model, rotation_sigma = "so3", noise.rotation_sigma
+    else:
+        noise_model, rotation_sigma = "paper", noise.rotation_coefficient_sigma
+    camera = builder.AddNamedSystem("camera", HandEyeCamera(
+        intrinsics=intrinsics_of(scenario), X_EC=X_EC_true,
+        p_TQ=np.asarray(scenario.target.points, dtype=float),
+        X_WT=transform_matrix(scenario.target.X_WT, "target.X_WT"), period=scenario.period,
+        pixel_sigma=model.pixel_sigma, pose_noise_model=noise_model,
+        rotation_sigma=rotation_sigma, translation_sigma=noise.translation_sigma))
+    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), camera.get_X_WE_input_port())
+    add_noise_sources(builder, camera, ("pixel_noise", "pose_noise"), scenario.period)
+    return camera
+
+
+def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
+              camera) -> VisualServoController:
+    """The IBVS controller (with its self-calibration prelude), fed by the camera's features
+    and commanding the arm's driver."""
+    servo = builder.AddNamedSystem("servo", VisualServoController(
+        intrinsics=intrinsics_of(scenario), p_TQ=np.asarray(scenario.target.points, dtype=float),
+        desired_features=desired_features(scenario), gain=scenario.servo.gain,
+        period=scenario.period, self_calibration_motions=self_calibration_motions(scenario),
+        max_angular_speed=scenario.servo.max_angular_speed,
+        max_linear_speed=scenario.servo.max_linear_speed))
+    builder.Connect(camera.get_features_output_port(), servo.get_features_input_port())
+    builder.Connect(camera.get_visible_output_port(), servo.get_visible_input_port())
+    builder.Connect(camera.get_X_CT_output_port(), servo.get_X_CT_input_port())
+    builder.Connect(servo.get_command_output_port(), arm.driver.get_V_WE_E_command_input_port())
+    return servo
+
+
+def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
+                   servo) -> tuple[HandEyeCalibrator, ZeroOrderHold]:
+    """The calibrator, fed by the robot pose sampled on the camera's clock (so that (X_BE, X_CT)
+    pairs are synchronous), the camera's measurement and the servo's phase."""
+    period = scenario.period
+    sampler = builder.AddNamedSystem("robot_pose_sampler", ZeroOrderHold(period, 12))
+    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
+    self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
+    calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
+        period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
+        estimator=scenario.estimator_config(),
+        num_self_calibration_motions=len(scenario.servo.self_calibration),
+        init_method=scenario.calibrator.init_method,
+        max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4))
+    builder.Connect(sampler.get_output_port(), calibrator.get_X_BE_input_port())
+    builder.Connect(camera.get_X_CT_output_port(), calibrator.get_X_CT_input_port())
+    builder.Connect(servo.get_phase_output_port(), calibrator.get_phase_input_port())
+    return calibrator, sampler
+
+
+def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
+                  meshcat=None, with_loggers: bool = True) -> ClosedLoop:
+    """Builds the closed loop.
+
+    Args:
+        scenario: a ``Scenario`` (validated here).
+        feedback: True wires the calibrator's ``X_CE_estimate`` into the servo's interaction
+            matrix; False feeds the servo the constant ``X_CE_fixed`` (default: the scenario's
+            guess) — the calibrator still runs, but open loop.
+        meshcat: an optional ``pydrake.geometry.Meshcat`` to visualize the arm in.
+        with_loggers: add the VectorLogSinks ``run_scenario`` reads (off for a clean picture).
+
+    Exported ports: outputs ``X_EC_estimate``, ``features``, ``feature_error``,
+    ``V_WE_E_command``, ``X_WC``.
+    """
+    scenario.validate()
+    builder = DiagramBuilder()
+    arm = add_arm_with_driver(scenario, builder)
+    X_EC_true = camera_pose_on_hand(scenario, arm.control_plant)
+    _check_start_visibility(scenario, arm, X_EC_true)
+    camera = add_camera(scenario, builder, arm, X_EC_true)
+    servo = add_servo(scenario, builder, arm, camera)
+    calibrator, sampler = add_calibrator(scenario, builder, arm, camera, servo)
+    if feedback:
+        builder.Connect(calibrator.get_X_CE_output_port(), servo.get_X_CE_input_port())
+    else:
+        X_CE_fixed = scenario.X_CE_guess_matrix() if X_CE_fixed is None else X_CE_fixed
+        fixed = builder.AddNamedSystem("fixed_hand_eye", ConstantVectorSource(
+            pose_to_vector(np.asarray(X_CE_fixed, dtype=float))))
+        builder.Connect(fixed.get_output_port(), servo.get_X_CE_input_port())
+
+    builder.ExportOutput(calibrator.get_X_EC_output_port(), "X_EC_estimate")
+    builder.ExportOutput(camera.get_features_output_port(), "features")
+    builder.ExportOutput(servo.get_feature_error_output_port(), "feature_error")
+    builder.ExportOutput(servo.get_command_output_port(), "V_WE_E_command")
+    builder.ExportOutput(camera.get_X_WC_output_port(), "X_WC")
+
+    loggers = {}
+    if with_loggers:
+        for name, port in {
+            "X_EC_estimate": calibrator.get_X_EC_output_port(),
+            "X_EC_two_motion": calibrator.get_two_motion_output_port(),
+            "X_EC_std": calibrator.get_X_EC_std_output_port(),
+            "calibrator_status": calibrator.get_status_output_port(),
+            "feature_error": servo.get_feature_error_output_port(),
+            "phase": servo.get_phase_output_port(),
+            "servo_status": servo.get_status_output_port(),
+            "features": camera.get_features_output_port(),
+            "visible": camera.get_visible_output_port(),
+            "X_WC": camera.get_X_WC_output_port(),
+            "V_WE_E_command": servo.get_command_output_port(),
+            "ik_status": arm.driver.get_status_output_port(),
+            "X_BE_sampled": sampler.get_output_port(),
+            "X_CT_measured": camera.get_X_CT_output_port(),
+        }.items():
+            logger = LogVectorOutput(port, builder, scenario.period)
+            logger.set_name(f"log_{name}")
+            loggers[name] = logger
+
+    if meshcat is not None:
+        from .systems.visualization import add_meshcat_visualization
+        add_meshcat_visualization(
+            builder, arm.handles.scene_graph, meshcat,
+            transform_matrix(scenario.target.X_WT, "target.X_WT"),
+            np.asarray(scenario.target.points, dtype=float), scenario.period,
+            camera.get_X_WC_output_port(), arm.ee_sensor.get_X_WE_output_port(),
+            calibrator.get_X_EC_output_port())
+
+    diagram = builder.Build()
+    diagram.set_name("handeye_closed_loop")
+    return ClosedLoop(diagram=diagram, plant=arm.handles.plant,
+                      scene_graph=arm.handles.scene_graph,
+                      model_instance=arm.handles.model_instance, driver=arm.driver,
+                      ee_sensor=arm.ee_sensor, camera=camera, servo=servo, calibrator=calibrator,
+                      X_EC_true=X_EC_true, loggers=loggers)
+
+
+def _check_start_visibility(scenario: Scenario, arm: _Arm, X_EC) -> None:
+    """Fails before simulating when the target is not fully in view at the start pose."""
+    plant = arm.control_plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, arm.q0)
+    X_WE = plant.CalcRelativeTransform(context, plant.world_frame(),
+                                       plant.GetFrameByName(scenario.arm.ee_frame)).GetAsMatrix4()
+    _, in_front, in_image = target_visibility(
+        intrinsics_of(scenario), X_WE, X_EC, np.asarray(scenario.target.points, dtype=float),
+        transform_matrix(scenario.target.X_WT, "target.X_WT"))
+    visible = in_front & in_image
+    if not np.all(visible):
+        raise ValueError("arm.q0_deg / target.X_WT: at the start pose the target points "
+                         f"{np.flatnonzero(~visible).tolist()} are behind the "
+                         "camera or outside the image")
+
+
+@dataclass
+class ScenarioResult:
+    """What a run produced. Poses are 4×4; ``times`` are the calibrator's log times."""
+    scenario: Scenario
+    times: np.ndarray
+    X_EC_true: np.ndarray
+    X_EC_estimates: np.ndarray        # (K, 4, 4), one per camera sample
+    X_EC_initial: np.ndarray          # the two-motion solution
+    rotation_error_deg: np.ndarray    # (K,) of X_EC_estimates vs X_EC_true
+    translation_error_rel: np.ndarray
+    initial_rotation_error_deg: float
+    initial_translation_error_rel: float
+    feature_error_px: np.ndarray      # (K,) RMS over visible points
+    features: np.ndarray              # (K, 2N)
+    desired_features: np.ndarray      # (2N,)
+    phase: np.ndarray
+    calibrator_status: np.ndarray     # (K, 4): [mode, accepted, rejected, last NIS]
+    X_EC_std: np.ndarray              # (K, 6): rotation (deg) and translation std of X_EC
+    servo_status: np.ndarray
+    ik_status: np.ndarray
+    X_WC: np.ndarray                  # (K, 4, 4) true camera poses
+    X_BE_samples: np.ndarray          # (K, 4, 4) robot poses sampled at the camera trigger
+    X_CT_samples: np.ndarray          # (K, 4, 4) the matching measured target poses
+    servo_start_time: float
+    sim_time: float
+    wall_time: float
+    #: The calibrator's mode at the end (``systems.calibrator.STATUS_*``) and why its estimate
+    #: should not be trusted (empty when nothing is wrong).
+    calibrator_mode: float = 0.0
+    diagnostics: list = field(default_factory=list)
+    #: The run was stopped (Ctrl-C) before ``scenario.duration``.
+    interrupted: bool = False
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.sim_time / self.wall_time
+
+    @property
+    def filter_updates(self) -> int:
+        return int(self.calibrator_status[-1, 1])
+
+    def summary(self) -> dict:
+        solved = self.calibrator_mode == STATUS_FILTERING
+        return {
+            "two_motion_rotation_error_deg": self.initial_rotation_error_deg if solved else None,
+            "two_motion_translation_error_rel": (self.initial_translation_error_rel if solved
+                                                 else None),
+            "final_rotation_error_deg": float(self.rotation_error_deg[-1]),
+            "final_translation_error_rel": float(self.translation_error_rel[-1]),
+            "final_feature_error_px": float(self.feature_error_px[-1]),
+            "estimator": type(self.scenario.calibrator.estimator).__name__,
+            "two_motion_solution_found": solved,
+            "filter_updates": self.filter_updates,
+            "rejected_measurements": int(self.calibrator_status[-1, 2]),
+            "final_X_EC_rotation_std_deg": [float(v) for v in self.X_EC_std[-1, :3]],
+            "final_X_EC_translation_std": [float(v) for v in self.X_EC_std[-1, 3:]],
+            "simulated_time_s": self.sim_time,
+            "wall_time_s": self.wall_time,
+            "real_time_factor": self.real_time_factor,
+            "diagnostics": list(self.diagnostics),
+            "interrupted": self.interrupted,
+        }
+
+
+def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
+                 meshcat=None, progress=None) -> ScenarioResult:
+    """Builds and simulates ``scenario`` (noise seeded by ``scenario.seed``).
+
+    ``progress``: optional callable receiving the simulated time (s) as the run advances. A
+    ``KeyboardInterrupt`` (Ctrl-C) stops the run: the result then holds what was simulated so far
+    and ``interrupted`` is True.
+    """
+    loop = build_diagram(scenario, feedback=feedback, X_CE_fixed=X_CE_fixed, meshcat=meshcat)
+    simulator = Simulator(loop.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    context = simulator.get_mutable_context()
+    loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+    if progress is not None:
+        def monitor(root_context):
+            progress(root_context.get_time())
+            return EventStatus.Succeeded()
+        simulator.set_monitor(monitor)
+    if meshcat is not None:
+        meshcat.StartRecording()
+    start = time.perf_counter()
+    interrupted = False
+    try:
+        simulator.Initialize()
+        simulator.AdvanceTo(scenario.duration)
+    except KeyboardInterrupt:
+        interrupted = True
+    wall = time.perf_counter() - start
+    if meshcat is not None:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+    result = _collect_result(scenario, loop, context, wall)
+    result.interrupted = interrupted
+    return result
+
+
+def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) -> ScenarioResult:
+    logs = {name: logger.FindLog(context) for name, logger in loop.loggers.items()}
+    est_log = logs["X_EC_estimate"]
+    times = est_log.sample_times()
+    X_EC_est = np.array([vector_to_pose(v) for v in est_log.data().T])
+    X_EC_true = loop.X_EC_true
+    X_EC_initial = vector_to_pose(logs["X_EC_two_motion"].data()[:, -1])
+    phase = logs["phase"].data()[0]
+    M = len(scenario.servo.self_calibration)
+    servo_start = float(times[np.argmax(phase >= M)]) if np.any(phase >= M) else float("nan")
+    data = {name: log.data().T for name, log in logs.items()}
+    if not all(np.all(np.isfinite(v)) for v in data.values()):
+        bad = [name for name, v in data.items() if not np.all(np.isfinite(v))]
+        raise RuntimeError(f"non-finite values logged on {bad}")
+    calibrator_context = loop.calibrator.GetMyContextFromRoot(context)
+    mode = float(loop.calibrator.get_status_output_port().Eval(calibrator_context)[0])
+    diagnostics = loop.calibrator.estimator(calibrator_context).diagnostics()
+    if mode == STATUS_INIT_FAILED:
+        diagnostics.insert(0, "the two-motion solution failed (the self-calibration motions do "
+                              "not determine X: too small, or about parallel axes); the "
+                              "estimator started from the guess X_EC_guess")
+    elif mode == STATUS_COLLECTING:
+        diagnostics.insert(0, "the self-calibration motions did not finish: no estimate yet")
+    final_error = float(data["feature_error"][-1, 0])
+    if final_error > SERVO_CONVERGED_PX:
+        diagnostics.append(f"the servo did not converge: final feature error {final_error:.3g} px "
+                           f"(> {SERVO_CONVERGED_PX:g} px)")
+    return ScenarioResult(
+        scenario=scenario, times=times, X_EC_true=X_EC_true, X_EC_estimates=X_EC_est,
+        X_EC_initial=X_EC_initial,
+        rotation_error_deg=np.array([rotation_error_deg(X_EC_true, X) for X in X_EC_est]),
+        translation_error_rel=np.array([translation_error_rel(X_EC_true, X) for X in X_EC_est]),
+        initial_rotation_error_deg=rotation_error_deg(X_EC_true, X_EC_initial),
+        initial_translation_error_rel=translation_error_rel(X_EC_true, X_EC_initial),
+        feature_error_px=data["feature_error"][:, 0], features=data["features"],
+        desired_features=desired_features(scenario), phase=phase,
+        calibrator_status=data["calibrator_status"], X_EC_std=data["X_EC_std"],
+        servo_status=data["servo_status"][:, 0],
+        ik_status=data["ik_status"][:, 0],
+        X_WC=np.array([vector_to_pose(v) for v in data["X_WC"]]),
+        X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
+        X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),
+        servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall,
+        calibrator_mode=mode, diagnostics=diagnostics)
+
+
+@dataclass
+class CalibratorBench:
+    """The calibrator alone, fed by ``PaperMotionSource``."""
+    diagram: Diagram
+    source: object
+    calibrator: HandEyeCalibrator
+    X_CE_true: np.ndarray
+    loggers: dict = field(default_factory=dict)
+
+
+def build_calibrator_bench(X_EC_true, estimator, period: float = 0.1,
+                           rotation_sigma: float = 2 * np.pi / 100,
+                           translation_sigma: float = 1.0, pose_noise_model: str = "paper",
+                           camera_rotation_sigma: float = 0.01,
+                           camera_translation_sigma: float = 0.1,
+                           self_calibration_angle: float = np.radians(30.0),
+                           init_method: str = "daniilidis",
+                           max_self_calibration_samples: int = 0) -> CalibratorBench:
+    """A diagram of the calibrator fed by the paper's random small motions (no arm, no servo,
+    docs/method.md §8): two self-calibration rotations of ``self_calibration_angle`` about E's x
+    then y axes, then random motions; the camera motion is measured with the given noise.
+    ``estimator``: the calibrator's estimator settings (``estimation.configs``). Loggers:
+    the calibrator's inputs (``X_BE``, ``X_CT_measured``, ``phase``) and outputs."""
+    from .estimation.synthetic import self_calibration_motions as two_rotations
+    from .systems.motion_source import PaperMotionSource
+
+    X_EC_true = np.asarray(X_EC_true, dtype=float)
+    scale = max(1.0, float(np.linalg.norm(X_EC_true[:3, 3])))
+    X_BE0 = np.eye(4)
+    X_BT = X_BE0 @ X_EC_true @ make_transform(np.eye(3), [0.0, 0.0, 5.0 * scale])
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem("motion_source", PaperMotionSource(
+        X_EC_true, X_BT, X_BE0, list(two_rotations(self_calibration_angle)), period,
+        rotation_sigma, translation_sigma, pose_noise_model, camera_rotation_sigma,
+        camera_translation_sigma))
+    add_noise_sources(builder, source, ("motion_noise", "pose_noise"), period)
+    calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
+        period=period, X_CE_initial_guess=np.eye(4), estimator=estimator,
+        init_method=init_method, max_self_calibration_samples=max_self_calibration_samples))
+    builder.Connect(source.get_X_BE_output_port(), calibrator.get_X_BE_input_port())
+    builder.Connect(source.get_X_CT_output_port(), calibrator.get_X_CT_input_port())
+    builder.Connect(source.get_phase_output_port(), calibrator.get_phase_input_port())
+    loggers = {}
+    for name, port in {"X_EC_estimate": calibrator.get_X_EC_output_port(),
+                       "X_EC_two_motion": calibrator.get_two_motion_output_port(),
+                       "status": calibrator.get_status_output_port(),
+                       "X_BE": source.get_X_BE_output_port(),
+                       "X_CT_measured": source.get_X_CT_output_port(),
+                       "phase": source.get_phase_output_port()}.items():
+        loggers[name] = LogVectorOutput(port, builder, period)
+        loggers[name].set_name(f"log_{name}")
+    builder.ExportOutput(calibrator.get_X_EC_output_port(), "X_EC_estimate")
+    diagram = builder.Build()
+    diagram.set_name("handeye_calibrator_bench")
+    return CalibratorBench(diagram=diagram, source=source, calibrator=calibrator,
+                           X_CE_true=inverse(X_EC_true), loggers=loggers)

@@ -1,0 +1,473 @@
+"""Calibration from recorded poses (issue 6): readers, alignment, time offset, pair selection and
+outliers, the ``calibrate`` command on the shipped example, reproducibility, filter long run."""
+
+import argparse
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import handeye_drake
+from handeye_drake import rotation_error_deg
+from handeye_drake.apps.calibrate import add_parser as add_calibrate_parser
+from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.apps.cli import main
+from handeye_drake.estimation.se3 import (
+    inverse,
+    make_transform,
+    quat_wxyz,
+    rotation_exp,
+    rotation_from_rpy,
+)
+from handeye_drake.recorded import (
+    align_streams,
+    estimate_time_offset,
+    form_pairs,
+    interpolate_poses,
+    parse_poses,
+    pose_stream,
+    read_poses,
+    robust_hand_eye,
+)
+from handeye_drake.recorded.align import UnobservableTimeOffset
+from handeye_drake.recorded.example import camera_pose, generate_example
+from handeye_drake.recorded.selection import InconsistentMotions
+
+DATA = Path(handeye_drake.__file__).parent / "data"
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def Rz(deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def Rx(deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
+
+
+# ------------------------------------------------------------------------------------ formats
+def test_tum_snippet():
+    text = ("# timestamp tx ty tz qx qy qz qw\n"
+            "0.0 1 2 3 0 0 0 1\n"
+            "\n"
+            "0.5, 1.5, 2.0, 3.0, 0, 0, 0.70710678, 0.70710678   # 90° about z\n")
+    s = parse_poses(text, "tum", "robot", "snippet.tum")
+    assert s.lines == (2, 4) and s.where(1) == "snippet.tum:4"
+    np.testing.assert_array_equal(s.timestamps, [0.0, 0.5])
+    np.testing.assert_allclose(s.poses[0], make_transform(np.eye(3), [1, 2, 3]))
+    np.testing.assert_allclose(s.poses[1], make_transform(Rz(90), [1.5, 2, 3]), atol=1e-8)
+
+
+def test_tum_camera_in_target_is_inverted():
+    text = "0.0 0.1 0.2 0.5 0 0 0.38268343 0.92387953\n"  # 45° about z
+    X_TC = make_transform(Rz(45), [0.1, 0.2, 0.5])
+    s = parse_poses(text, "tum", "camera", "c.tum", camera_in_target=True)
+    np.testing.assert_allclose(s.poses[0], inverse(X_TC), atol=1e-8)
+    np.testing.assert_allclose(s.poses[0] @ X_TC, np.eye(4), atol=1e-8)
+
+
+def test_csv_matrix_snippets():
+    rows = "1 0 0 0.1  0 0 -1 0.2  0 1 0 0.3  0 0 0 1"  # 90° about x
+    s = parse_poses(f"# 4x4 row-major\n{rows}\n{rows.replace('0.1', '0.4')}\n", "csv-matrix",
+                    "robot", "m.csv")
+    assert s.timestamps is None and s.lines == (2, 3)
+    np.testing.assert_allclose(s.poses[0], make_transform(Rx(90), [0.1, 0.2, 0.3]), atol=1e-15)
+    assert s.poses[1, 0, 3] == 0.4
+    s = parse_poses(f"2.5,{rows.replace(' ', ',').replace(',,', ',')}\n", "csv-matrix", "robot",
+                    "t.csv")
+    np.testing.assert_array_equal(s.timestamps, [2.5])
+    np.testing.assert_allclose(s.poses[0], make_transform(Rx(90), [0.1, 0.2, 0.3]), atol=1e-15)
+
+
+YAML_SNIPPET = """%YAML:1.0
+---
+timestamps: [ 0., 0.5 ]
+R_gripper2base:
+   - !!opencv-matrix
+      rows: 3
+      cols: 3
+      dt: d
+      data: [ 1., 0., 0., 0., 0., -1., 0., 1., 0. ]
+   - !!opencv-matrix
+      rows: 3
+      cols: 1
+      dt: d
+      data: [ 0., 0., 1.5707963267948966 ]
+t_gripper2base:
+   - !!opencv-matrix
+      rows: 3
+      cols: 1
+      dt: d
+      data: [ 0.1, 0.2,
+          0.3 ]
+   - !!opencv-matrix
+      rows: 3
+      cols: 1
+      dt: d
+      data: [ 0.4, 0.5, 0.6 ]
+camera_poses:
+   - !!opencv-matrix
+      rows: 4
+      cols: 4
+      dt: f
+      data: [ 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0.5, 0., 0., 0., 1. ]
+   - !!opencv-matrix
+      rows: 4
+      cols: 4
+      dt: d
+      data: [ 0., -1., 0., 0., 1., 0., 0., 0., 0., 0., 1., 0.5, 0., 0., 0., 1. ]
+"""
+
+
+def test_opencv_yaml_snippet_agrees_with_cv2(tmp_path):
+    cv2 = pytest.importorskip("cv2")  # the test extra; the reader itself does not use it
+    path = tmp_path / "poses.yaml"
+    path.write_text(YAML_SNIPPET)
+    robot = read_poses(path, "robot")
+    camera = read_poses(path, "camera")
+    np.testing.assert_allclose(robot.poses[0], make_transform(Rx(90), [0.1, 0.2, 0.3]),
+                               atol=1e-15)
+    np.testing.assert_allclose(robot.poses[1], make_transform(Rz(90), [0.4, 0.5, 0.6]),
+                               atol=1e-15)
+    np.testing.assert_array_equal(robot.timestamps, [0.0, 0.5])
+    np.testing.assert_array_equal(camera.timestamps, [0.0, 0.5])
+    assert robot.lines == (5, 10) and camera.lines == (28, 33)
+    # OpenCV reads the same file to the same numbers.
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    node = fs.getNode("camera_poses")
+    for k in range(2):
+        np.testing.assert_allclose(camera.poses[k], node.at(k).mat(), atol=1e-15)
+    R_node, t_node = fs.getNode("R_gripper2base"), fs.getNode("t_gripper2base")
+    np.testing.assert_allclose(robot.poses[0, :3, :3], R_node.at(0).mat())
+    np.testing.assert_allclose(robot.poses[1, :3, :3], cv2.Rodrigues(R_node.at(1).mat())[0],
+                               atol=1e-15)
+    np.testing.assert_allclose(robot.poses[0, :3, 3], t_node.at(0).mat().ravel())
+    fs.release()
+
+
+def test_opencv_yaml_written_by_cv2(tmp_path):
+    """cv2.FileStorage's own output (target2cam keys, Rodrigues vectors, timestamps matrix)."""
+    cv2 = pytest.importorskip("cv2")  # the test extra; the reader itself does not use it
+    rng = np.random.default_rng(3)
+    X_CT = [make_transform(rotation_exp(rng.normal(size=3)), rng.normal(size=3)) for _ in range(3)]
+    path = str(tmp_path / "cv.yaml")
+    fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_timestamps", np.array([[0.1], [0.2], [0.35]]))
+    for key, values in (("R_target2cam", [cv2.Rodrigues(X[:3, :3])[0] for X in X_CT]),
+                        ("t_target2cam", [X[:3, 3:4] for X in X_CT])):
+        fs.startWriteStruct(key, cv2.FileNode_SEQ)
+        for v in values:
+            fs.write("", v)
+        fs.endWriteStruct()
+    fs.release()
+    s = read_poses(path, "camera")
+    np.testing.assert_allclose(s.poses, np.array(X_CT), atol=1e-12)
+    np.testing.assert_array_equal(s.timestamps, [0.1, 0.2, 0.35])
+    # The cam2target keys hold X_TC: read inverted, and they require the flag to agree.
+    text = Path(path).read_text().replace("target2cam", "cam2target")
+    s = parse_poses(text, "opencv-yaml", "camera", "x.yaml", camera_in_target=True)
+    np.testing.assert_allclose(s.poses, np.array([inverse(X) for X in X_CT]), atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------- alignment
+def test_interpolation_known_values():
+    X0 = make_transform(np.eye(3), [1.0, 2.0, 3.0])
+    X1 = make_transform(Rz(90), [3.0, 2.0, 1.0])
+    X = interpolate_poses([0.0, 1.0], [X0, X1], [0.0, 0.25, 1.0])
+    np.testing.assert_allclose(X[0], X0, atol=1e-15)
+    np.testing.assert_allclose(X[1], make_transform(Rz(22.5), [1.5, 2.0, 2.5]), atol=1e-15)
+    np.testing.assert_allclose(X[2], X1, atol=1e-15)
+    with pytest.raises(ValueError, match=r"query_times\[0\] = 1.5 is outside the interpolated "
+                                         r"time span \[0.0, 1.0\]"):
+        interpolate_poses([0.0, 1.0], [X0, X1], [1.5])
+
+
+def test_align_streams_interpolates_and_reports_dropped_samples():
+    X0 = make_transform(np.eye(3), [1.0, 2.0, 3.0])
+    robot = pose_stream([X0, make_transform(Rz(90), [3.0, 2.0, 1.0]), X0, X0],
+                        [0.0, 1.0, 2.0, 10.0], "r.tum", [3, 4, 5, 6])
+    camera = pose_stream([np.eye(4)] * 6, [0.1, 0.35, 0.6, 1.1, 5.0, 12.0], "c.tum",
+                         [10, 11, 12, 13, 14, 15])
+    a = align_streams(robot, camera, time_offset=0.1)
+    # Robot instants t − 0.1: −0.0 (exact sample), 0.25, 0.5, 1.0; 4.9 lies in the 2 → 10 s gap
+    # (> 5 × the median period 1 s), 11.9 after the robot's last sample.
+    assert a.camera_lines == (10, 11, 12, 13)
+    assert a.dropped_gap == (14,) and a.dropped_outside == (15,)
+    np.testing.assert_allclose(a.X_BE[1], make_transform(Rz(22.5), [1.5, 2.0, 2.5]), atol=1e-14)
+    np.testing.assert_allclose(a.X_BE[2], make_transform(Rz(45), [2.0, 2.0, 2.0]), atol=1e-14)
+    np.testing.assert_allclose(a.X_BE[3], make_transform(Rz(90), [3.0, 2.0, 1.0]), atol=1e-14)
+
+
+def synthetic_streams(offset, seed=0, duration=12.0, noise_deg=0.1, noise_t=0.0005):
+    """Robot at 50 Hz, camera at 15 Hz stamped ``offset`` s late, the example's motion."""
+    rng = np.random.default_rng(seed)
+    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
+    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
+    t_r = np.arange(int(duration * 50) + 1) / 50.0
+    t_c = 0.3 + np.arange(int((duration - 0.6) * 15)) / 15.0
+    X_BE = [camera_pose(t) @ inverse(X_EC) for t in t_r]
+    X_CT = [make_transform(rotation_exp(np.radians(noise_deg) * rng.normal(size=3)),
+                           noise_t * rng.normal(size=3)) @ inverse(camera_pose(t)) @ X_BT
+            for t in t_c]
+    return (pose_stream(X_BE, t_r, "robot"), pose_stream(X_CT, t_c + offset, "camera"), X_EC)
+
+
+@pytest.mark.parametrize("offset", [-0.037, 0.0, 0.061])
+def test_time_offset_recovered(offset):
+    robot, camera, _ = synthetic_streams(offset, seed=int(1000 * abs(offset)))
+    est = estimate_time_offset(robot, camera, search_range=0.25)
+    assert abs(est.offset - offset) < 0.005, est.offset
+    assert est.residual_rms_deg < 0.3  # θ_A − θ_B at the offset: noise only
+
+
+def test_time_offset_on_shipped_example():
+    truth = json.loads((DATA / "example_truth.json").read_text())
+    est = estimate_time_offset(read_poses(DATA / "example_robot.tum", "robot"),
+                               read_poses(DATA / "example_camera.tum", "camera"))
+    assert abs(est.offset - truth["time_offset_s"]) < 0.005
+
+
+def test_time_offset_unobservable_without_rotation_speed_changes():
+    """A constant rotation speed makes |θ_A| independent of the offset: refused, explained."""
+    t = np.arange(0, 10, 0.02)
+    X = [make_transform(Rz(20 * s), [0.1, 0, 0]) for s in t]
+    tc = np.arange(1, 9, 1 / 15)
+    Y = [make_transform(Rz(20 * s), [0.1, 0, 0]) for s in tc]
+    with pytest.raises(ValueError, match="cost is flat .* rotation speed is too uniform"):
+        estimate_time_offset(pose_stream(X, t, "r"), pose_stream(Y, tc, "c"))
+
+
+def test_default_time_offset_falls_back_to_zero_when_unobservable():
+    robot, camera, X_EC = synthetic_streams(0.0, duration=4.0)
+    res = calibrate_streams(robot, camera, time_offset_range=2.0)  # no sample fits ±2 s
+    assert res.time_offset_mode == "default: 0 (offset unobservable)"
+    assert res.aligned.time_offset == 0.0
+    assert res.warnings == ["time offset not estimated, 0 used: time offset estimation: only 0 "
+                            "camera samples of camera stay inside the robot's time span [0.0, "
+                            "4.0] s for every offset in ±2 s; need at least 4 — reduce the "
+                            "search range or check that both streams use the same clock"]
+    assert rotation_error_deg(X_EC, res.X_EC) < 0.5
+    # Asked for explicitly, the same condition is an error.
+    with pytest.raises(UnobservableTimeOffset, match="only 0 camera samples"):
+        calibrate_streams(robot, camera, time_offset="auto", time_offset_range=2.0)
+
+
+# ---------------------------------------------------------------------------------- selection
+def aligned_synthetic(n=120, seed=1, outliers=()):
+    rng = np.random.default_rng(seed)
+    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
+    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
+    t = np.arange(n) / 6.0
+    X_BE = np.array([camera_pose(s) @ inverse(X_EC) for s in t])
+    X_CT = np.array([make_transform(rotation_exp(np.radians(0.1) * rng.normal(size=3)),
+                                    0.0005 * rng.normal(size=3)) @ inverse(camera_pose(s)) @ X_BT
+                     for s in t])
+    for k in outliers:
+        X_CT[k] = make_transform(rotation_exp(np.radians(8) * np.array([0.6, 0.0, 0.8])),
+                                 [0.03, -0.02, 0.0]) @ X_CT[k]
+    return X_BE, X_CT, X_EC
+
+
+def test_form_pairs():
+    X_BE, X_CT, _ = aligned_synthetic(40)
+    p = form_pairs(X_BE, X_CT, max_pair_angle_deg=60.0, min_rotation_deg=5.0)
+    assert np.array_equal(p.index[:39], np.c_[np.arange(39), np.arange(1, 40)])
+    assert p.consecutive[:39].all() and not p.consecutive[39:].any()
+    wide = p.index[~p.consecutive]
+    assert len(np.unique(wide)) == wide.size  # a matching: no sample twice
+    assert np.all(wide[:, 1] >= wide[:, 0] + 2)
+    angles = np.degrees(p.angle_B[~p.consecutive])
+    assert np.all((angles >= 5.0) & (angles <= 60.0 + 1e-9))
+    assert angles[0] == pytest.approx(angles.max())  # greedy: the largest rotation first
+    k = 45
+    i, j = p.index[k]
+    np.testing.assert_allclose(p.A[k], X_CT[i] @ inverse(X_CT[j]), atol=1e-14)
+    np.testing.assert_allclose(p.B[k], inverse(X_BE[i]) @ X_BE[j], atol=1e-14)
+
+
+def test_outlier_rejection_removes_injected_outliers():
+    injected = [17, 58, 93]
+    X_BE, X_CT, X_EC = aligned_synthetic(outliers=injected)
+    fit = robust_hand_eye(X_BE, X_CT, "daniilidis", holdout_fraction=0.0)
+    assert fit.outlier_samples.tolist() == injected
+    touching = np.isin(fit.pairs.index, injected).any(axis=1)
+    # Every pair through an outlier is rejected, and (almost) only those.
+    assert not fit.inlier[touching].any()
+    assert (~fit.inlier & ~touching).sum() <= 2
+    assert rotation_error_deg(X_EC, inverse(fit.X_CE)) < 0.1
+    assert np.linalg.norm(inverse(fit.X_CE)[:3, 3] - X_EC[:3, 3]) < 1e-3
+    # Without the outlier tests the same data gives a visibly worse solution.
+    from handeye_drake import solve_ax_xb
+    p = fit.pairs
+    X_all = inverse(solve_ax_xb(list(p.A[fit.usable]), list(p.B[fit.usable])))
+    assert rotation_error_deg(X_EC, X_all) > 3 * rotation_error_deg(X_EC, inverse(fit.X_CE))
+
+
+@pytest.mark.parametrize("invert", ["camera", "robot"])
+def test_convention_mix_up_is_diagnosed(invert):
+    X_BE, X_CT, _ = aligned_synthetic()
+    if invert == "camera":
+        X_CT = np.array([inverse(X) for X in X_CT])
+    else:
+        X_BE = np.array([inverse(X) for X in X_BE])
+    with pytest.raises(InconsistentMotions, match=r"inconsistent motions: no hand-eye transform "
+                       r"fits them .*the camera poses fit when inverted.*toggle "
+                       r"--camera-pose-is-camera-in-target — or the robot poses fit when "
+                       r"inverted"):
+        robust_hand_eye(X_BE, X_CT)
+
+
+def test_holdout_split():
+    X_BE, X_CT, _ = aligned_synthetic()
+    fit = robust_hand_eye(X_BE, X_CT, "tsai", holdout_fraction=0.2, seed=5)
+    usable_inliers = fit.inlier & fit.usable
+    assert fit.held_out.sum() == round(0.2 * usable_inliers.sum())
+    assert not (fit.held_out & fit.fit).any()
+    assert np.array_equal(fit.held_out | fit.fit, usable_inliers)
+    other = robust_hand_eye(X_BE, X_CT, "tsai", holdout_fraction=0.2, seed=6)
+    assert not np.array_equal(other.held_out, fit.held_out)
+
+
+# ------------------------------------------------------------------------- calibrate command
+EXAMPLE_ARGS = ["calibrate", "--robot", str(DATA / "example_robot.tum"), "--camera",
+                str(DATA / "example_camera.tum"), "--online"]  # time offset: auto by default
+
+
+@pytest.fixture(scope="module")
+def example_runs(tmp_path_factory):
+    """The command on the shipped example, twice with the same seed, once with another."""
+    out = {}
+    for name, extra in (("a", []), ("b", []), ("seed7", ["--seed", "7"])):
+        d = tmp_path_factory.mktemp(name)
+        assert main(EXAMPLE_ARGS + ["--out", str(d)] + extra) == 0
+        out[name] = d
+    return out
+
+
+def test_calibrate_recovers_the_example_truth(example_runs):
+    truth = json.loads((DATA / "example_truth.json").read_text())
+    result = json.loads((example_runs["a"] / "calibration.json").read_text())
+    X_true, X = np.array(truth["X_EC"]), np.array(result["X_EC"]["matrix"])
+    assert rotation_error_deg(X_true, X) < 0.5
+    assert np.linalg.norm(X[:3, 3] - X_true[:3, 3]) < 0.005
+    assert result["time_offset"]["mode"] == "auto (default)"
+    assert abs(result["time_offset"]["value_s"] - truth["time_offset_s"]) < 0.005
+    # The two injected gross outliers, and only they, are found.
+    assert result["outlier_camera_samples"]["lines"] == truth["outlier_camera_lines"]
+    assert result["alignment"]["dropped_outside_robot_span"] == 4
+    p = result["pairs"]
+    assert p["formed"] == p["consecutive"] + p["wide"] and p["consecutive"] == 299
+    assert p["usable"] + p["below_min_rotation"] == p["formed"]
+    assert p["fit"] + p["held_out"] == p["usable_inliers"]
+    assert p["held_out"] == round(0.2 * p["usable_inliers"])
+    # Representations of X_EC agree with the matrix.
+    q = np.array(result["X_EC"]["quaternion_wxyz"])
+    np.testing.assert_allclose(q, quat_wxyz(X[:3, :3]))
+    np.testing.assert_allclose(rotation_from_rpy(np.radians(result["X_EC"]["rpy_deg"])),
+                               X[:3, :3], atol=1e-12)
+    # Standard deviations: real, positive, and the error is within a few of them.
+    std = result["std"]
+    assert result["std_method"] == "ml"
+    sr, st = np.array(std["rotation_deg"]), np.array(std["translation"])
+    assert np.all((sr > 1e-3) & (sr < 0.1)) and np.all((st > 1e-5) & (st < 1e-3))
+    assert rotation_error_deg(X_true, X) < 4 * np.linalg.norm(sr)
+    assert np.linalg.norm(X[:3, 3] - X_true[:3, 3]) < 4 * np.linalg.norm(st)
+    assert 0.5 < std["ml_cost_per_dof"] < 2.0  # the estimated noise levels fit the residuals
+    # Held-out residuals are noise-sized: ~0.1° pose noise on two poses, 0.5 mm + lever arm.
+    h = result["held_out_residuals"]
+    assert h["count"] == p["held_out"]
+    assert 0.05 < h["rotation_deg"]["median"] < 0.5
+    assert 2e-4 < h["translation"]["median"] < 5e-3
+    assert result["warnings"] == []
+
+
+def test_calibrate_output_table_and_online(example_runs, capsys):
+    result = json.loads((example_runs["a"] / "calibration.json").read_text())
+    online = result["online"]
+    assert online["updates"] > 20 and online["skipped_updates"] == 0
+    assert online["final_diff_to_batch"]["rotation_deg"] < online["initial_diff_to_batch"][
+        "rotation_deg"]
+    assert online["final_diff_to_batch"]["translation"] < online["initial_diff_to_batch"][
+        "translation"]
+    png = example_runs["a"] / "online_convergence.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_calibrate_json_is_bit_identical_for_the_same_seed(example_runs):
+    a = (example_runs["a"] / "calibration.json").read_bytes()
+    b = (example_runs["b"] / "calibration.json").read_bytes()
+    assert a == b
+    c = json.loads((example_runs["seed7"] / "calibration.json").read_text())
+    assert c["seed"] == 7 and c != json.loads(a)  # another hold-out split
+
+
+def test_run_calibrate_command_through_a_parser_built_here(tmp_path, capsys):
+    parser = argparse.ArgumentParser(prog="handeye-drake")
+    add_calibrate_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["calibrate", "--robot", str(DATA / "example_robot.tum"),
+                              "--camera", str(DATA / "example_camera.tum"), "--time-offset",
+                              "0.02", "--method", "park", "--std", "bootstrap", "--out",
+                              str(tmp_path)])
+    assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "time offset: +0.02000 s (given)" in out and "park" in out
+    assert "outlying camera poses: 2 (lines 180, 218)" in out
+    assert "held out" in out and f"wrote: {tmp_path / 'calibration.json'}" in out
+    result = json.loads((tmp_path / "calibration.json").read_text())
+    truth = json.loads((DATA / "example_truth.json").read_text())
+    assert result["std_method"] == "bootstrap" and result["std"]["resamples_solved"] == 50
+    assert rotation_error_deg(np.array(truth["X_EC"]), np.array(result["X_EC"]["matrix"])) < 0.5
+    assert result["online"] is None and not (tmp_path / "online_convergence.png").exists()
+
+
+def test_calibrate_opencv_yaml_end_to_end(tmp_path):
+    """Index-paired OpenCV YAML (cv::calibrateHandEye's inputs) written by cv2.FileStorage."""
+    cv2 = pytest.importorskip("cv2")  # the test extra; the reader itself does not use it
+    X_BE, X_CT, X_EC = aligned_synthetic(n=60, seed=4)
+    path = str(tmp_path / "handeye.yaml")
+    fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
+    for key, values in (("R_gripper2base", [X[:3, :3] for X in X_BE]),
+                        ("t_gripper2base", [X[:3, 3:4] for X in X_BE]),
+                        ("R_target2cam", [X[:3, :3] for X in X_CT]),
+                        ("t_target2cam", [X[:3, 3:4] for X in X_CT])):
+        fs.startWriteStruct(key, cv2.FileNode_SEQ)
+        for v in values:
+            fs.write("", v)
+        fs.endWriteStruct()
+    fs.release()
+    assert main(["calibrate", "--robot", path, "--camera", path, "--out",
+                 str(tmp_path / "out")]) == 0
+    result = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    X = np.array(result["X_EC"]["matrix"])
+    assert rotation_error_deg(X_EC, X) < 0.2 and np.linalg.norm(X[:3, 3] - X_EC[:3, 3]) < 2e-3
+    assert result["time_offset"]["mode"] == "default: none (no timestamps)"
+    assert result["alignment"]["aligned"] == 60
+
+
+def test_shipped_example_is_what_the_generator_writes(tmp_path):
+    truth = generate_example(tmp_path, seed=0)
+    for name in ("example_robot.tum", "example_camera.tum", "example_truth.json"):
+        assert (tmp_path / name).read_bytes() == (DATA / name).read_bytes(), name
+    assert sum((DATA / n).stat().st_size for n in ("example_robot.tum", "example_camera.tum",
+                                                   "example_truth.json")) < 200_000
+    assert truth["time_offset_s"] == 0.02 and len(truth["outlier_camera_lines"]) == 2
+
+
+# ------------------------------------------------------------------------- filter long run
+def test_filter_long_run_10k():
+    spec = importlib.util.spec_from_file_location("filter_long_run",
+                                                  ROOT / "benchmarks" / "filter_long_run.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    result = bench.run(10**4, seed=1, check_every=2500)
+    assert [c["updates"] for c in result["checks"]] == [2500, 5000, 7500, 10000]
+    assert result["failures"] == []
+    final = result["final"]
+    assert final["asymmetry"] == 0.0  # kalman_step symmetrizes P
+    assert final["min_eigenvalue"] > 0.0
+    assert final["rotation_error_deg"] < 0.05 and final["translation_error"] < 1e-3
