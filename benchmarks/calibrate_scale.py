@@ -123,7 +123,7 @@ def _rotation_error_deg(X1, X2) -> float:
 def run(out_dir, python: str = sys.executable, extra=()) -> dict:
     """``handeye-drake calibrate`` on OUT_DIR/{robot,camera}.tum under /usr/bin/time -v."""
     d = Path(out_dir)
-    cmd = ["/usr/bin/time", "-v", python, "-m", "handeye_drake.cli", "calibrate", "--robot",
+    cmd = ["/usr/bin/time", "-v", python, "-m", "handeye_drake.apps.cli", "calibrate", "--robot",
            str(d / "robot.tum"), "--camera", str(d / "camera.tum"), "--out", str(d / "out"),
            *extra]
     t0 = time.perf_counter()

@@ -4,7 +4,7 @@
 
 Each case writes a robot and/or a camera file (derived from the shipped example recording, or
 special files: devices, a FIFO, a process substitution, big generated files) and runs
-``python -W error -m handeye_drake.cli calibrate`` on them (so any warning would surface as a
+``python -W error -m handeye_drake.apps.cli calibrate`` on them (so any warning would surface as a
 traceback), with a timeout. It prints, per case: the exit code, the wall time, whether stderr
 holds a traceback, and the first line of stderr (or the X_EC error against the truth when the
 command succeeds). Big inputs (10⁶ lines) live here, not in the tests.
@@ -202,7 +202,7 @@ def run_case(name, spec, tmp: Path, timeout: float) -> dict:
             str(out), *spec.get("args", [])]
     if any(a.endswith(".fifo") or a.startswith("<(") for a in args):
         args += ["--format", "tum"] if "--format" not in args else []
-    cmd = [sys.executable, "-W", "error", "-m", "handeye_drake.cli", *args]
+    cmd = [sys.executable, "-W", "error", "-m", "handeye_drake.apps.cli", *args]
     for w in writers:
         w.start()
     t0 = time.perf_counter()
