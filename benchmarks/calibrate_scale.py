@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -123,6 +124,7 @@ def _rotation_error_deg(X1, X2) -> float:
 def run(out_dir, python: str = sys.executable, extra=()) -> dict:
     """``handeye-drake calibrate`` on OUT_DIR/{robot,camera}.tum under /usr/bin/time -v."""
     d = Path(out_dir)
+    shutil.rmtree(d / "out", ignore_errors=True)  # the command writes only into a new directory
     cmd = ["/usr/bin/time", "-v", python, "-m", "handeye_drake.apps.cli", "calibrate", "--robot",
            str(d / "robot.tum"), "--camera", str(d / "camera.tum"), "--out", str(d / "out"),
            *extra]
