@@ -429,7 +429,7 @@ def _row_norms(v: np.ndarray) -> np.ndarray:
         w = v[redo]
         m = np.abs(w).max(axis=1, initial=0.0)
         safe = np.where(m > 0, m, 1.0)
-        with np.errstate(under="ignore"):
+        with np.errstate(under="ignore", over="ignore"):  # inf for norms beyond 1.8e308
             norms[redo] = m * np.sqrt(np.sum((w / safe[:, None]) ** 2, axis=1))
     return norms
 
