@@ -6,6 +6,10 @@ conveniences on top of it.
 
 import numpy as np
 
+from handeye_drake.estimation.se3 import rotation_from_rpy
+from handeye_drake.recorded.example import camera_pose
+from handeye_drake.recorded.formats import pose_stream as _pose_stream
+
 from handeye_drake.estimation.configs import ManifoldFilter, PaperFilter, TargetFilter
 from handeye_drake.estimation.kalman import HandEyeKalmanFilter
 from handeye_drake.estimation.manifold import HandEyeTargetFilter, ManifoldHandEyeFilter
@@ -91,3 +95,35 @@ def noisy(A, rng, rotation_sigma, translation_sigma):
     A[:3, :3] += rotation_sigma * rng.normal(size=(3, 3))
     A[:3, 3] += translation_sigma * rng.normal(size=3)
     return A
+
+
+# --------------------------------------------------------------------- recorded streams
+def synthetic_streams(offset, seed=0, duration=12.0, noise_deg=0.1, noise_t=0.0005):
+    """Robot at 50 Hz, camera at 15 Hz stamped ``offset`` s late, the example's motion."""
+    rng = np.random.default_rng(seed)
+    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
+    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
+    t_r = np.arange(int(duration * 50) + 1) / 50.0
+    t_c = 0.3 + np.arange(int((duration - 0.6) * 15)) / 15.0
+    X_BE = [camera_pose(t) @ inverse(X_EC) for t in t_r]
+    X_CT = [make_transform(rotation_exp(np.radians(noise_deg) * rng.normal(size=3)),
+                           noise_t * rng.normal(size=3)) @ inverse(camera_pose(t)) @ X_BT
+            for t in t_c]
+    return (_pose_stream(X_BE, t_r, "robot"), _pose_stream(X_CT, t_c + offset, "camera"), X_EC)
+
+
+def aligned_synthetic(n=120, seed=1, outliers=()):
+    rng = np.random.default_rng(seed)
+    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
+    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
+    t = np.arange(n) / 6.0
+    X_BE = np.array([camera_pose(s) @ inverse(X_EC) for s in t])
+    X_CT = np.array([make_transform(rotation_exp(np.radians(0.1) * rng.normal(size=3)),
+                                    0.0005 * rng.normal(size=3)) @ inverse(camera_pose(s)) @ X_BT
+                     for s in t])
+    for k in outliers:
+        X_CT[k] = make_transform(rotation_exp(np.radians(8) * np.array([0.6, 0.0, 0.8])),
+                                 [0.03, -0.02, 0.0]) @ X_CT[k]
+    return X_BE, X_CT, X_EC
+
+

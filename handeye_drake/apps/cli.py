@@ -24,8 +24,16 @@ APPLICATIONS = (simulate, calibrate, plan, reproduce)
 BENCHMARKS = (accuracy,)
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as one line (``handeye-drake calibrate: error: ...``, exit 2); ``--help``
+    still prints the usage."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="handeye-drake",
         description="On-line hand-eye calibration embedded in visual servoing (Drake).")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -41,7 +49,10 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = make_parser().parse_args(argv)
+    try:
+        args = make_parser().parse_args(argv)
+    except SystemExit as e:  # --help (0) or a usage error (2, already printed)
+        return e.code if isinstance(e.code, int) else 2
     try:
         return args.func(args)
     except ValueError as e:

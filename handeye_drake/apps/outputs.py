@@ -44,15 +44,26 @@ class OutputDir:
     command: str
     force: bool = False
     earlier: list = field(default_factory=list)
+    claimed: set = field(default_factory=set)
 
     def path(self, name: str) -> Path:
         p = self.root / name
-        if p.exists() and name not in self.earlier and not p.is_dir():
+        if p.exists() and name not in self.earlier and name not in self.claimed \
+                and not p.is_dir():
             raise ValueError(f"--out {self.root}: {name} exists and was not written by "
                              f"'handeye-drake {self.command}'; not overwriting it (choose another "
                              "--out)")
         p.parent.mkdir(parents=True, exist_ok=True)
+        if name not in self.claimed:
+            # Claimed in the manifest before it is written: a run that stops half-way (an
+            # error, Ctrl-C) leaves a directory that the next run of the command may reuse.
+            self.claimed.add(name)
+            self._write_manifest(sorted(set(self.earlier) | self.claimed))
         return p
+
+    def _write_manifest(self, names) -> None:
+        (self.root / MANIFEST).write_text(json.dumps(
+            {"command": self.command, "files": list(names)}, indent=1) + "\n")
 
     def finish(self, written) -> None:
         names = sorted({str(Path(w).resolve().relative_to(self.root.resolve()))
@@ -61,8 +72,7 @@ class OutputDir:
             p = self.root / stale
             if p.is_file():
                 p.unlink()
-        (self.root / MANIFEST).write_text(json.dumps(
-            {"command": self.command, "files": names}, indent=1) + "\n")
+        self._write_manifest(names)
 
 
 def prepare_output_dir(out, command: str, force: bool = False) -> OutputDir:

@@ -41,6 +41,12 @@ for _k, (_i, _j, _s) in enumerate(((2, 1, 1), (1, 2, -1), (0, 2, 1), (2, 0, -1),
     _AXIAL[_k // 2, 3 * _i + _j] = 0.5 * _s
 
 
+#: The raw rotation block may deviate from a rotation by this many of its entries' σ (plus
+#: ``SHRINK_FLOOR``) before ``diagnostics`` reports the filter as biased.
+SHRINK_SIGMAS = 4.0
+SHRINK_FLOOR = 1e-3
+
+
 def measurement_covariance(noise_covariance: str, rotation_sigma: float,
                            translation_sigma: float, R_X=None, t_X=None, R_B=None) -> np.ndarray:
     """Covariance G2 of the measurement noise n in y = C x + n (docs/method.md §5).
@@ -256,6 +262,29 @@ class HandEyeKalmanFilter(EstimatorBase):
     @property
     def X_CE_covariance(self) -> np.ndarray:
         return tangent_covariance_of_state(self._x, self._P)
+
+    def rotation_block_singular_values(self) -> np.ndarray:
+        """Singular values of the raw 3×3 rotation block (all 1 for a rotation)."""
+        return np.linalg.svd(self._x[:9].reshape(3, 3), compute_uv=False)
+
+    def diagnostics(self) -> list[str]:
+        """``EstimatorBase.diagnostics``, and the bias of the linear model: the measured motions
+        carry noise inside the measurement matrix (errors in variables), which pulls the raw
+        rotation block towards zero — most with many small motions and a broad initial
+        covariance. Its translation is then biased by about (1 − s) times the target distance
+        while the covariance stays small, so a block that has shrunk beyond its own σ is
+        reported here."""
+        out = super().diagnostics()
+        s = self.rotation_block_singular_values()
+        deviation = float(np.max(np.abs(1.0 - s)))
+        allowed = SHRINK_SIGMAS * math.sqrt(float(np.max(np.diag(self._P)[:9]))) + SHRINK_FLOOR
+        if deviation > allowed:
+            out.append(f"the filter's rotation block is {deviation:.3g} away from a rotation "
+                       f"(singular values {', '.join(f'{v:.4g}' for v in s)}; its σ allows "
+                       f"{allowed:.2g}): the linear filter is biased by the noise of the motions "
+                       "(errors in variables) and its σ are too small — use fewer, larger "
+                       "motions or a smaller initial covariance, or the ManifoldFilter")
+        return out
 
     # -------------------------------------------------------------------------------- vector
     @classmethod

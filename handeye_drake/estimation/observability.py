@@ -408,7 +408,9 @@ class ObservabilityReport:
         """JSON-friendly summary (inf written as null)."""
         def num(x):
             return float(x) if math.isfinite(x) else None
-        d = {"mode": self.mode, "frame": self.frame, "length_scale_m": self.length_scale,
+        d = {"mode": self.mode, "frame": self.frame,
+             "observable": self.observable, "weak": bool(self.weak), "ok": self.ok,
+             "length_scale_m": self.length_scale,
              "condition_number": num(self.condition_number),
              "rotation_std_deg": [num(x) for x in self.rotation_std_deg],
              "translation_std_m": [num(x) for x in self.translation_std],

@@ -133,12 +133,38 @@ def _translation_Y(A: np.ndarray, B: np.ndarray, R_Y: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(C, d, rcond=None)[0]
 
 
-def _tsai(A, B):
+#: Near this hand-eye angle Tsai–Lenz's tan(θ/2) parametrization degrades (see ``_tsai``).
+TSAI_GUARD_ANGLE = np.radians(170.0)
+
+
+def _tsai(A, B, guard: bool = True):
     P_A = 2.0 * _quats(A[:, :3, :3])[:, 1:]
     P_B = 2.0 * _quats(B[:, :3, :3])[:, 1:]
     M = np.concatenate([skew(pb + pa) for pb, pa in zip(P_B, P_A)])
     P = np.linalg.lstsq(M, (P_A - P_B).reshape(-1), rcond=None)[0]  # tan(θ_Y/2)·n_Y
+    # Near θ_Y = 180° (a camera mounted upside down) tan(θ/2) blows up and the least squares
+    # settles on a wrong rotation. Check the rotation equation B Y = Y A it should satisfy:
+    # against the motions' size, and against Park's rotation (no such singularity) on the same
+    # motions — a Tsai rotation fitting clearly worse than Park's is its singularity showing.
     R_Y = _quat_to_rotation(np.concatenate([[1.0], P]))
+
+    def residual(R):
+        return float(np.median([np.linalg.norm(B[k, :3, :3] @ R - R @ A[k, :3, :3])
+                                for k in range(len(A))]))
+    reference = np.median([np.linalg.norm(B[k, :3, :3] - np.eye(3)) for k in range(len(A))])
+    alpha = Rotation.from_matrix(B[:, :3, :3]).as_rotvec()
+    beta = Rotation.from_matrix(A[:, :3, :3]).as_rotvec()
+    R_park = orthonormalize_unchecked((beta.T @ alpha).T, "svd")
+    r_park, r_tsai = residual(R_park), residual(R_Y)
+    near = 2.0 * np.arctan(np.linalg.norm(P)) > TSAI_GUARD_ANGLE and np.degrees(
+        np.linalg.norm(Rotation.from_matrix(R_Y @ R_park.T).as_rotvec())) > 0.05
+    if guard and (near or r_tsai > 0.5 * max(reference, 1e-12)
+                  or r_tsai > 2.0 * r_park + 1e-9 * reference):
+        raise ValueError(
+            "tsai: the hand-eye rotation is near 180° (e.g. a camera mounted upside down), "
+            "where Tsai–Lenz's tan(θ/2) parametrization is singular and its result unreliable "
+            f"(rotation residual {r_tsai:.3g}, Park's {r_park:.3g}, motions {reference:.3g}); use "
+            "park, horaud or daniilidis")
     return inverse(make_transform(R_Y, _translation_Y(A, B, R_Y)))
 
 
@@ -293,13 +319,13 @@ def _check_motions(A: np.ndarray, B: np.ndarray, label: Callable[[int], str],
 
 
 def _solve(A: list, B: list, method: str, label: Callable[[int], str],
-           min_angle: float) -> np.ndarray:
+           min_angle: float, guard: bool = True) -> np.ndarray:
     A, B = np.array(A, dtype=float), np.array(B, dtype=float)
     _check_motions(A, B, label, min_angle)
     # Numerically degenerate input (e.g. subnormal translations) may overflow inside a solver;
     # that is detected on the result and reported, not warned about.
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        X_CE = _SOLVERS[method](A, B)
+        X_CE = _tsai(A, B, guard) if method == "tsai" else _SOLVERS[method](A, B)
     if not np.all(np.isfinite(X_CE)):
         raise ValueError(f"{method}: numerically degenerate motions, the solution is not finite")
     return X_CE
@@ -309,7 +335,8 @@ def _solve(A: list, B: list, method: str, label: Callable[[int], str],
 # Public API.
 
 def solve_ax_xb(A_list, B_list, method: str = "daniilidis", orthonormalize_inputs: bool = False,
-                min_angle: float = MIN_ROTATION_ANGLE) -> np.ndarray:
+                min_angle: float = MIN_ROTATION_ANGLE, singularity_guard: bool = True
+                ) -> np.ndarray:
     """Solves A_k X = X B_k for the hand-eye X = X_CE (pose of E in C) with a classical method.
 
     Args:
@@ -323,6 +350,10 @@ def solve_ax_xb(A_list, B_list, method: str = "daniilidis", orthonormalize_input
             them first (``orthonormalize``), or pass True to have every rotation block projected
             on SO(3) with the SVD.
         min_angle: smallest accepted rotation angle (rad) of any A_k or B_k.
+        singularity_guard: "tsai" refuses a hand-eye rotation near 180° (its tan(θ/2)
+            parametrization is singular there: above 170° its rotation must agree with Park's
+            within 0.05°, and its rotation equation must fit as well as Park's); False reproduces
+            the published algorithm, wrong results included (the paper reproduction uses it).
 
     Returns:
         X_CE as a 4×4 numpy array (rigid).
@@ -331,7 +362,7 @@ def solve_ax_xb(A_list, B_list, method: str = "daniilidis", orthonormalize_input
         ValueError: unknown method; malformed, non-finite or (without orthonormalize_inputs)
             non-rigid motions; lists of different lengths; fewer than 2 motions; a motion
             rotating less than ``min_angle``; all rotation axes (near-)parallel; rotation angles
-            of A_k and B_k grossly different for every k.
+            of A_k and B_k grossly different for every k; "tsai" near its 180° singularity.
     """
     method = _check_method(method)
     min_angle = check_positive(min_angle, "min_angle")
@@ -340,7 +371,8 @@ def solve_ax_xb(A_list, B_list, method: str = "daniilidis", orthonormalize_input
     check_same_length(A, "A_list", B, "B_list")
     if orthonormalize_inputs:
         A, B = _project_rotations(A, "A_list"), _project_rotations(B, "B_list")
-    return _solve(A, B, method, lambda k: f"motion {k} (A_list[{k}], B_list[{k}])", min_angle)
+    return _solve(A, B, method, lambda k: f"motion {k} (A_list[{k}], B_list[{k}])", min_angle,
+                  bool(singularity_guard))
 
 
 def calibrate_hand_eye(X_BE_list, X_CT_list, method: str = "daniilidis", pairs: str = "all",

@@ -153,3 +153,23 @@ def test_filter_settings_errors_name_the_field(settings, message):
 def test_filter_initial_estimate_errors(X, message):
     with pytest.raises(ValueError, match=message):
         paper_filter(X)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_errors_in_variables_bias_is_reported(seed):
+    """Many small noisy motions from a broad prior shrink the raw rotation block (the noise sits
+    in the measurement matrix): the filter must say its estimate is biased. Large motions from a
+    tight prior do not, and end within their σ."""
+    X = make_transform(rotation_exp([0.3, -0.2, 1.2]), [0.05, -0.02, 0.08])
+    for P0, deg, n, sigma, biased in ((1.0, 1.0, 300, 0.003, True),
+                                      (1e-4, 30.0, 100, 0.001, False)):
+        rng = np.random.default_rng(seed)
+        f = paper_filter(X, P0=P0, rotation_sigma=sigma, translation_sigma=sigma,
+                         noise_covariance="exact")
+        for A, B in motion_pairs(rng, X, n, rotation_sigma_deg=deg, translation_sigma=0.05):
+            f.update_motion(noisy(A, rng, sigma, sigma), B)
+        messages = [m for m in f.diagnostics() if "errors in variables" in m]
+        assert bool(messages) == biased, (P0, f.rotation_block_singular_values())
+        if not biased:
+            err = f.X_CE[:3, 3] - X[:3, 3]
+            assert np.linalg.norm(err) < 4 * np.sqrt(np.trace(f.X_CE_covariance[3:, 3:]))

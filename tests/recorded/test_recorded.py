@@ -1,7 +1,6 @@
-"""Calibration from recorded poses (issue 6): readers, alignment, time offset, pair selection and
-outliers, the ``calibrate`` command on the shipped example, reproducibility, filter long run."""
+"""Recorded data (``handeye_drake.recorded``): readers, alignment, time offset, pair selection and
+outliers, the shipped example, the filter long run."""
 
-import argparse
 import importlib.util
 import json
 import math
@@ -12,15 +11,10 @@ import pytest
 
 import handeye_drake
 from handeye_drake import rotation_error_deg
-from handeye_drake.apps.calibrate import add_parser as add_calibrate_parser
-from handeye_drake.apps.calibrate import calibrate_streams
-from handeye_drake.apps.cli import main
 from handeye_drake.estimation.se3 import (
     inverse,
     make_transform,
-    quat_wxyz,
     rotation_exp,
-    rotation_from_rpy,
 )
 from handeye_drake.recorded import (
     align_streams,
@@ -32,8 +26,7 @@ from handeye_drake.recorded import (
     read_poses,
     robust_hand_eye,
 )
-from handeye_drake.recorded.align import UnobservableTimeOffset
-from handeye_drake.recorded.example import camera_pose, generate_example
+from handeye_drake.recorded.example import generate_example
 from handeye_drake.recorded.selection import InconsistentMotions
 
 DATA = Path(handeye_drake.__file__).parent / "data"
@@ -203,18 +196,7 @@ def test_align_streams_interpolates_and_reports_dropped_samples():
     np.testing.assert_allclose(a.X_BE[3], make_transform(Rz(90), [3.0, 2.0, 1.0]), atol=1e-14)
 
 
-def synthetic_streams(offset, seed=0, duration=12.0, noise_deg=0.1, noise_t=0.0005):
-    """Robot at 50 Hz, camera at 15 Hz stamped ``offset`` s late, the example's motion."""
-    rng = np.random.default_rng(seed)
-    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
-    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
-    t_r = np.arange(int(duration * 50) + 1) / 50.0
-    t_c = 0.3 + np.arange(int((duration - 0.6) * 15)) / 15.0
-    X_BE = [camera_pose(t) @ inverse(X_EC) for t in t_r]
-    X_CT = [make_transform(rotation_exp(np.radians(noise_deg) * rng.normal(size=3)),
-                           noise_t * rng.normal(size=3)) @ inverse(camera_pose(t)) @ X_BT
-            for t in t_c]
-    return (pose_stream(X_BE, t_r, "robot"), pose_stream(X_CT, t_c + offset, "camera"), X_EC)
+from tests.fixtures import aligned_synthetic, synthetic_streams  # noqa: E402
 
 
 @pytest.mark.parametrize("offset", [-0.037, 0.0, 0.061])
@@ -242,37 +224,7 @@ def test_time_offset_unobservable_without_rotation_speed_changes():
         estimate_time_offset(pose_stream(X, t, "r"), pose_stream(Y, tc, "c"))
 
 
-def test_default_time_offset_falls_back_to_zero_when_unobservable():
-    robot, camera, X_EC = synthetic_streams(0.0, duration=4.0)
-    res = calibrate_streams(robot, camera, time_offset_range=2.0)  # no sample fits ±2 s
-    assert res.time_offset_mode == "default: 0 (offset unobservable)"
-    assert res.aligned.time_offset == 0.0
-    assert res.warnings == ["time offset not estimated, 0 used: time offset estimation: only 0 "
-                            "camera samples of camera stay inside the robot's time span [0.0, "
-                            "4.0] s for every offset in ±2 s; need at least 4 — reduce the "
-                            "search range or check that both streams use the same clock"]
-    assert rotation_error_deg(X_EC, res.X_EC) < 0.5
-    # Asked for explicitly, the same condition is an error.
-    with pytest.raises(UnobservableTimeOffset, match="only 0 camera samples"):
-        calibrate_streams(robot, camera, time_offset="auto", time_offset_range=2.0)
-
-
 # ---------------------------------------------------------------------------------- selection
-def aligned_synthetic(n=120, seed=1, outliers=()):
-    rng = np.random.default_rng(seed)
-    X_EC = make_transform(rotation_from_rpy(np.radians([10, -5, 30])), [0.02, 0.05, 0.1])
-    X_BT = make_transform(np.eye(3), [0.55, 0.05, 0.0])
-    t = np.arange(n) / 6.0
-    X_BE = np.array([camera_pose(s) @ inverse(X_EC) for s in t])
-    X_CT = np.array([make_transform(rotation_exp(np.radians(0.1) * rng.normal(size=3)),
-                                    0.0005 * rng.normal(size=3)) @ inverse(camera_pose(s)) @ X_BT
-                     for s in t])
-    for k in outliers:
-        X_CT[k] = make_transform(rotation_exp(np.radians(8) * np.array([0.6, 0.0, 0.8])),
-                                 [0.03, -0.02, 0.0]) @ X_CT[k]
-    return X_BE, X_CT, X_EC
-
-
 def test_form_pairs():
     X_BE, X_CT, _ = aligned_synthetic(40)
     p = form_pairs(X_BE, X_CT, max_pair_angle_deg=60.0, min_rotation_deg=5.0)
@@ -331,122 +283,6 @@ def test_holdout_split():
     assert np.array_equal(fit.held_out | fit.fit, usable_inliers)
     other = robust_hand_eye(X_BE, X_CT, "tsai", holdout_fraction=0.2, seed=6)
     assert not np.array_equal(other.held_out, fit.held_out)
-
-
-# ------------------------------------------------------------------------- calibrate command
-EXAMPLE_ARGS = ["calibrate", "--robot", str(DATA / "example_robot.tum"), "--camera",
-                str(DATA / "example_camera.tum"), "--online"]  # time offset: auto by default
-
-
-@pytest.fixture(scope="module")
-def example_runs(tmp_path_factory):
-    """The command on the shipped example, twice with the same seed, once with another."""
-    out = {}
-    for name, extra in (("a", []), ("b", []), ("seed7", ["--seed", "7"])):
-        d = tmp_path_factory.mktemp(name)
-        assert main(EXAMPLE_ARGS + ["--out", str(d)] + extra) == 0
-        out[name] = d
-    return out
-
-
-def test_calibrate_recovers_the_example_truth(example_runs):
-    truth = json.loads((DATA / "example_truth.json").read_text())
-    result = json.loads((example_runs["a"] / "calibration.json").read_text())
-    X_true, X = np.array(truth["X_EC"]), np.array(result["X_EC"]["matrix"])
-    assert rotation_error_deg(X_true, X) < 0.5
-    assert np.linalg.norm(X[:3, 3] - X_true[:3, 3]) < 0.005
-    assert result["time_offset"]["mode"] == "auto (default)"
-    assert abs(result["time_offset"]["value_s"] - truth["time_offset_s"]) < 0.005
-    # The two injected gross outliers, and only they, are found.
-    assert result["outlier_camera_samples"]["lines"] == truth["outlier_camera_lines"]
-    assert result["alignment"]["dropped_outside_robot_span"] == 4
-    p = result["pairs"]
-    assert p["formed"] == p["consecutive"] + p["wide"] and p["consecutive"] == 299
-    assert p["usable"] + p["below_min_rotation"] == p["formed"]
-    assert p["fit"] + p["held_out"] == p["usable_inliers"]
-    assert p["held_out"] == round(0.2 * p["usable_inliers"])
-    # Representations of X_EC agree with the matrix.
-    q = np.array(result["X_EC"]["quaternion_wxyz"])
-    np.testing.assert_allclose(q, quat_wxyz(X[:3, :3]))
-    np.testing.assert_allclose(rotation_from_rpy(np.radians(result["X_EC"]["rpy_deg"])),
-                               X[:3, :3], atol=1e-12)
-    # Standard deviations: real, positive, and the error is within a few of them.
-    std = result["std"]
-    assert result["std_method"] == "ml"
-    sr, st = np.array(std["rotation_deg"]), np.array(std["translation"])
-    assert np.all((sr > 1e-3) & (sr < 0.1)) and np.all((st > 1e-5) & (st < 1e-3))
-    assert rotation_error_deg(X_true, X) < 4 * np.linalg.norm(sr)
-    assert np.linalg.norm(X[:3, 3] - X_true[:3, 3]) < 4 * np.linalg.norm(st)
-    assert 0.5 < std["ml_cost_per_dof"] < 2.0  # the estimated noise levels fit the residuals
-    # Held-out residuals are noise-sized: ~0.1° pose noise on two poses, 0.5 mm + lever arm.
-    h = result["held_out_residuals"]
-    assert h["count"] == p["held_out"]
-    assert 0.05 < h["rotation_deg"]["median"] < 0.5
-    assert 2e-4 < h["translation"]["median"] < 5e-3
-    assert result["warnings"] == []
-
-
-def test_calibrate_output_table_and_online(example_runs, capsys):
-    result = json.loads((example_runs["a"] / "calibration.json").read_text())
-    online = result["online"]
-    assert online["updates"] > 20 and online["skipped_updates"] == 0
-    assert online["final_diff_to_batch"]["rotation_deg"] < online["initial_diff_to_batch"][
-        "rotation_deg"]
-    assert online["final_diff_to_batch"]["translation"] < online["initial_diff_to_batch"][
-        "translation"]
-    png = example_runs["a"] / "online_convergence.png"
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
-
-
-def test_calibrate_json_is_bit_identical_for_the_same_seed(example_runs):
-    a = (example_runs["a"] / "calibration.json").read_bytes()
-    b = (example_runs["b"] / "calibration.json").read_bytes()
-    assert a == b
-    c = json.loads((example_runs["seed7"] / "calibration.json").read_text())
-    assert c["seed"] == 7 and c != json.loads(a)  # another hold-out split
-
-
-def test_run_calibrate_command_through_a_parser_built_here(tmp_path, capsys):
-    parser = argparse.ArgumentParser(prog="handeye-drake")
-    add_calibrate_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["calibrate", "--robot", str(DATA / "example_robot.tum"),
-                              "--camera", str(DATA / "example_camera.tum"), "--time-offset",
-                              "0.02", "--method", "park", "--std", "bootstrap", "--out",
-                              str(tmp_path)])
-    assert args.func(args) == 0
-    out = capsys.readouterr().out
-    assert "time offset: +0.02000 s (given)" in out and "park" in out
-    assert "outlying camera poses: 2 (lines 180, 218)" in out
-    assert "held out" in out and f"wrote: {tmp_path / 'calibration.json'}" in out
-    result = json.loads((tmp_path / "calibration.json").read_text())
-    truth = json.loads((DATA / "example_truth.json").read_text())
-    assert result["std_method"] == "bootstrap" and result["std"]["resamples_solved"] == 50
-    assert rotation_error_deg(np.array(truth["X_EC"]), np.array(result["X_EC"]["matrix"])) < 0.5
-    assert result["online"] is None and not (tmp_path / "online_convergence.png").exists()
-
-
-def test_calibrate_opencv_yaml_end_to_end(tmp_path):
-    """Index-paired OpenCV YAML (cv::calibrateHandEye's inputs) written by cv2.FileStorage."""
-    cv2 = pytest.importorskip("cv2")  # the test extra; the reader itself does not use it
-    X_BE, X_CT, X_EC = aligned_synthetic(n=60, seed=4)
-    path = str(tmp_path / "handeye.yaml")
-    fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
-    for key, values in (("R_gripper2base", [X[:3, :3] for X in X_BE]),
-                        ("t_gripper2base", [X[:3, 3:4] for X in X_BE]),
-                        ("R_target2cam", [X[:3, :3] for X in X_CT]),
-                        ("t_target2cam", [X[:3, 3:4] for X in X_CT])):
-        fs.startWriteStruct(key, cv2.FileNode_SEQ)
-        for v in values:
-            fs.write("", v)
-        fs.endWriteStruct()
-    fs.release()
-    assert main(["calibrate", "--robot", path, "--camera", path, "--out",
-                 str(tmp_path / "out")]) == 0
-    result = json.loads((tmp_path / "out" / "calibration.json").read_text())
-    X = np.array(result["X_EC"]["matrix"])
-    assert rotation_error_deg(X_EC, X) < 0.2 and np.linalg.norm(X[:3, 3] - X_EC[:3, 3]) < 2e-3
-    assert result["time_offset"]["mode"] == "default: none (no timestamps)"
-    assert result["alignment"]["aligned"] == 60
 
 
 def test_shipped_example_is_what_the_generator_writes(tmp_path):

@@ -60,7 +60,8 @@ RUN_CHUNK = 250
 def solve(A: list, B: list, solver: str) -> np.ndarray:
     """X_CE from the motion pairs with one of ``SOLVERS`` (raises ValueError like solve_ax_xb)."""
     if solver != "daniilidis_scaled":
-        return solve_ax_xb(A, B, solver, orthonormalize_inputs=True)
+        # The published algorithms, as the paper ran them (no guard near Tsai's singularity).
+        return solve_ax_xb(A, B, solver, orthonormalize_inputs=True, singularity_guard=False)
     norms = [np.linalg.norm(M[:3, 3]) for M in list(A) + list(B)]
     norms = [v for v in norms if v > 0]
     scale = float(np.mean(norms)) if norms else 1.0

@@ -1,0 +1,349 @@
+"""The verdict of a calibration: is the result consistent with its data, and if not, why?
+
+A result is reported as a success only when its residuals, in rotation and in translation, are
+consistent with plausible measurement noise and with its own σ. Each check below adds a reason
+(FAIL or WARN) that names what is wrong and what to do:
+
+- residuals beyond plausible camera noise (``max_noise``): the data do not fit — then the usual
+  mistakes are tried as alternatives, and the one that explains the data is named;
+- held-out residuals beyond the fit's noise (χ² test): the fit does not generalize;
+- two independent halves of the data disagree beyond their σ (split-half NEES): the σ are too
+  small — unmodelled effects (clock offset, robot kinematic errors, a target that moved);
+- an implausible result (a camera farther from the flange than ``max_hand_eye_distance``);
+- directions the motions do not determine (observability), too few samples, an offset on the
+  search bound, too many outliers.
+
+Alternatives (``default_alternatives``), each re-fitted quickly on a subset of the samples and
+compared by their median pose residuals: quaternions written scalar-first (w x y z) in either
+file, robot and camera streams swapped, the other mode (equivalently: robot poses X_EB given for
+X_BE, or camera poses X_TC for X_CT), a file in millimetres, and a clock offset other than the
+one forced.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from ...estimation.solvers import calibrate_hand_eye
+from ...recorded.align import align_streams, estimate_time_offset
+from ...recorded.consistency import (implied_fixed_poses, mean_pose, pose_residuals,
+                                     rotation_from_swapped_quaternions, with_rotations,
+                                     with_scaled_translations)
+from ...recorded.formats import PoseStream
+from .pipeline import DEFAULT_MAX_HAND_EYE_DISTANCE, hand_name
+
+#: Samples used by the quick fit of each alternative (evenly spaced over the recording).
+QUICK_SAMPLES = 40
+#: An alternative explains the data when its median residuals are at most this fraction of the
+#: data as read in rotation or in translation, and not worse (by more than ``NOT_WORSE``) in the
+#: other. (Some mistakes leave one of the two unchanged: swapping the quaternion order of both
+#: files conjugates every rotation alike, millimetres only scale translations.)
+BETTER_BY = 0.5
+NOT_WORSE = 1.15
+#: A smaller improvement (at most this fraction) is still reported, as a WARN.
+SOMEWHAT_BETTER = 0.8
+#: More outlying samples than this fraction: WARN; than the second: FAIL.
+OUTLIER_FRACTIONS = (0.1, 0.3)
+#: Fewest samples for a calibration worth trusting (WARN below).
+MIN_SAMPLES = 8
+
+
+@dataclass
+class Reason:
+    level: str      # "FAIL" or "WARN"
+    code: str
+    message: str
+
+    def to_dict(self) -> dict:
+        return {"level": self.level, "code": self.code, "message": self.message}
+
+
+@dataclass
+class Verdict:
+    status: str
+    reasons: list = field(default_factory=list)
+
+    def line(self) -> str:
+        """``verdict: OK``, or ``verdict: FAIL (2 reasons)`` — the reasons follow it."""
+        n = len(self.reasons)
+        return f"verdict: {self.status}" + (f" ({n} reason{'s' * (n > 1)})" if n else "")
+
+    def to_dict(self) -> dict:
+        return {"status": self.status, "reasons": [r.to_dict() for r in self.reasons]}
+
+
+@dataclass
+class Alternative:
+    """A way the data could have been read wrongly: ``apply(robot, camera)`` returns the streams
+    as they would be if the mistake were undone (and the mode to fit them in)."""
+    code: str
+    description: str
+    fix: str
+    apply: object
+
+
+@dataclass
+class Hypothesis:
+    """An alternative, fitted: its median residuals (deg, m) and hand-eye translation norm."""
+    code: str
+    description: str
+    fix: str
+    rotation_deg: float
+    translation_m: float
+    hand_eye_distance: float
+    error: str = ""
+    mode: str = ""  # the mode it was fitted in ("" = the mode of the data as read)
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("code", "description", "fix", "rotation_deg",
+                                              "translation_m", "hand_eye_distance", "error")}
+
+
+def _quick_fit(robot: PoseStream, camera: PoseStream, mode: str, offset: float):
+    """Median pose residuals (deg, m) and |t| of a classical fit on a subset of the samples."""
+    robot_side = robot if mode == "eye_in_hand" else robot.inverted()
+    aligned = align_streams(robot_side, camera, offset)
+    X_R, X_CT = np.asarray(aligned.X_BE), np.asarray(aligned.X_CT)
+    idx = np.unique(np.linspace(0, len(X_R) - 1, min(QUICK_SAMPLES, len(X_R))).round().astype(int))
+    X_R, X_CT = X_R[idx], X_CT[idx]
+    X_H = calibrate_hand_eye(list(X_R), list(X_CT), "park", min_angle=0.01)
+    X_F = mean_pose(implied_fixed_poses(X_R, X_CT, X_H))
+    deg, dist = pose_residuals(X_R, X_CT, X_H, X_F)
+    return float(np.median(deg)), float(np.median(dist)), float(np.linalg.norm(X_H[:3, 3]))
+
+
+def _stream(poses: np.ndarray, like: PoseStream) -> PoseStream:
+    return dataclasses.replace(like, poses=poses)
+
+
+@dataclass
+class Reading:
+    """How the streams were read and fitted: what the alternatives are compared with."""
+    mode: str
+    time_offset: float
+    time_offset_mode: str
+    time_offset_range: float
+    quaternion_streams: tuple
+    warnings: list = field(default_factory=list)
+
+
+def reading_of(result) -> Reading:
+    return Reading(result.mode, result.aligned.time_offset, result.time_offset_mode,
+                   result.settings["time_offset_range_s"], result.settings["quaternion_streams"],
+                   result.warnings)
+
+
+def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
+                         ) -> list[Alternative]:
+    """The usual mistakes (see the module docstring) that apply to these streams."""
+    other = "eye_to_hand" if reading.mode == "eye_in_hand" else "eye_in_hand"
+    alts = []
+    quaternions = reading.quaternion_streams
+    for which in ("robot", "camera"):
+        if which not in quaternions:
+            continue
+        alts.append(Alternative(
+            f"{which}_quaternion_order",
+            f"the {which} file's quaternions are scalar-first (w x y z), not TUM's x y z w",
+            f"--{which}-quaternion-order wxyz",
+            lambda r, c, w=which: (
+                _stream(with_rotations(r.poses, rotation_from_swapped_quaternions(
+                    r.poses[:, :3, :3])), r) if w == "robot" else r,
+                _stream(with_rotations(c.poses, rotation_from_swapped_quaternions(
+                    c.poses[:, :3, :3])), c) if w == "camera" else c, None)))
+    if len(quaternions) == 2:
+        alts.append(Alternative(
+            "both_quaternion_order", "both files' quaternions are scalar-first (w x y z)",
+            "--robot-quaternion-order wxyz --camera-quaternion-order wxyz",
+            lambda r, c: (_stream(with_rotations(r.poses, rotation_from_swapped_quaternions(
+                r.poses[:, :3, :3])), r), _stream(with_rotations(
+                    c.poses, rotation_from_swapped_quaternions(c.poses[:, :3, :3])), c), None)))
+    alts.append(Alternative(
+        "swapped_streams", "the robot and camera files are swapped",
+        "swap --robot and --camera",
+        lambda r, c: (c, r, "auto_offset" if r.has_timestamps and c.has_timestamps else None)))
+    alts.append(Alternative(
+        "other_mode",
+        f"the data fit {other.replace('_', '-')}: the camera is "
+        + ("fixed in the cell (target on the flange)" if other == "eye_to_hand" else
+           "on the flange") + ", or the robot poses are inverted (X_EB given for X_BE), or the "
+        "camera poses are (X_TC given for X_CT)",
+        f"--mode {other.replace('_', '-')} if that is the set-up, else invert the camera stream "
+        "(add or drop --camera-pose-is-camera-in-target)", lambda r, c: (r, c, other)))
+    for which in ("robot", "camera"):
+        alts.append(Alternative(
+            f"{which}_millimetres", f"the {which} file's translations are in millimetres",
+            f"--{which}-translation-scale 0.001",
+            lambda r, c, w=which: (
+                _stream(with_scaled_translations(r.poses, 1e-3), r) if w == "robot" else r,
+                _stream(with_scaled_translations(c.poses, 1e-3), c) if w == "camera" else c,
+                None)))
+    if reading.time_offset_mode == "given" and robot.has_timestamps and camera.has_timestamps:
+        alts.append(Alternative(
+            "clock_offset", "the clock offset given does not fit the data",
+            "--time-offset auto", lambda r, c: (r, c, "auto_offset")))
+    return alts
+
+
+def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypothesis]:
+    """Fits the data as read and each alternative quickly, on the same subset size."""
+    offset = reading.time_offset
+    error = ""
+    try:
+        base = _quick_fit(robot, camera, reading.mode, offset)
+    except ValueError as e:
+        base = (math.inf, math.inf, math.inf)
+        error = " ".join(str(e).split())[:200]
+    out = [Hypothesis("as_read", "the data as read", "", *base, error=error)]
+    for alt in alternatives:
+        try:
+            r, c, mode = alt.apply(robot, camera)
+            off = offset
+            if mode == "auto_offset":  # the alternative's own clock offset
+                mode = reading.mode
+                side = r if mode == "eye_in_hand" else r.inverted()
+                off = estimate_time_offset(side, c, reading.time_offset_range).offset
+            out.append(Hypothesis(alt.code, alt.description, alt.fix,
+                                  *_quick_fit(r, c, mode or reading.mode, off),
+                                  mode="" if mode in (None, reading.mode) else mode))
+        except ValueError as e:
+            out.append(Hypothesis(alt.code, alt.description, alt.fix, math.inf, math.inf,
+                                  math.inf, error=" ".join(str(e).split())[:200]))
+    return out
+
+
+def explaining(hypotheses, max_deg: float, max_m: float, max_distance: float = math.inf,
+               better_by: float = BETTER_BY) -> list[Hypothesis]:
+    """The alternatives that explain the data better than the data as read, best first: far
+    smaller residuals (see ``BETTER_BY``), or — when both fit — a plausible hand-eye distance
+    where the data as read give an implausible one (swapped streams fit AX = ZB as well, with the
+    target's pose in the base as "hand-eye" transform). An alternative whose hand-eye distance is
+    itself implausible explains nothing."""
+    base = hypotheses[0]
+    b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+    found = [h for h in hypotheses[1:]
+             if _explains(h, base, max_deg, max_m, max_distance, better_by)]
+    return sorted(found, key=lambda h: h.rotation_deg / b_deg + h.translation_m / b_m)
+
+
+def _explains(h: Hypothesis, base: Hypothesis, max_deg: float, max_m: float,
+              max_distance: float, better_by: float = BETTER_BY) -> bool:
+    # Residual medians are per-axis noise × CHI3_MEDIAN (1.54) when the data fit.
+    # An alternative in the other mode is held to that mode's plausible distance.
+    own_distance = DEFAULT_MAX_HAND_EYE_DISTANCE[h.mode] if h.mode else max_distance
+    plausible = (h.rotation_deg <= max_deg * 1.54 and h.translation_m <= max_m * 1.54
+                 and h.hand_eye_distance <= own_distance)
+    if not plausible or not np.isfinite(h.rotation_deg):
+        return False
+    b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+    r_deg, r_m = h.rotation_deg / b_deg, h.translation_m / b_m
+    if min(r_deg, r_m) <= better_by and max(r_deg, r_m) <= NOT_WORSE:
+        return True
+    return (base.hand_eye_distance > max_distance and h.hand_eye_distance <= own_distance
+            and r_deg <= 2.0 and r_m <= 2.0)
+
+
+def verdict(result) -> Verdict:
+    """The checks of the module docstring on a ``CalibrationResult``."""
+    reasons = []
+    fit = result.fit
+    name = hand_name(result.mode)
+    max_deg, max_m = result.settings["max_noise"]
+    sr_deg, st = math.degrees(fit.rotation_sigma), fit.translation_sigma
+    base = result.hypotheses[0] if result.hypotheses else None
+    better = explaining(result.hypotheses, max_deg, max_m,
+                        result.settings["max_hand_eye_distance_m"]) if base is not None else []
+    noisy = sr_deg > max_deg or st > max_m
+    far = float(np.linalg.norm(fit.X_H[:3, 3])) > result.settings["max_hand_eye_distance_m"]
+    hints = [] if better or base is None else explaining(
+        result.hypotheses, max_deg, max_m, result.settings["max_hand_eye_distance_m"],
+        SOMEWHAT_BETTER)
+    for level, found in (("FAIL", better), ("WARN", hints)):
+        if found:
+            best = found[0]
+            reasons.append(Reason(
+                level, best.code,
+                f"{best.description}: read that way the data fit with median residuals "
+                f"{best.rotation_deg:.3g}° / {1000 * best.translation_m:.3g} mm instead of "
+                f"{base.rotation_deg:.3g}° / {1000 * base.translation_m:.3g} mm — {best.fix}"))
+    if noisy:
+        reasons.append(Reason(
+            "FAIL", "residuals",
+            f"the residuals are beyond what a camera pose measurement has: noise "
+            f"{sr_deg:.3g}° / {1000 * st:.3g} mm per axis (plausible: ≤ {max_deg:g}° / "
+            f"{1000 * max_m:g} mm, --max-noise)"
+            + ("" if better else "; no usual mistake (quaternion order, swapped or "
+               "inverted streams, units, clock offset) explains them: check that the streams "
+               "belong to the same recording and that the target did not move")))
+    if far and not noisy:
+        swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
+        hint = ""
+        if swapped is not None and swapped.hand_eye_distance < 0.5 * np.linalg.norm(
+                fit.X_H[:3, 3]) and swapped.rotation_deg < 4 * max(base.rotation_deg, 1e-3):
+            hint = (f"; with robot and camera files swapped the data fit as well and put the "
+                    f"camera {swapped.hand_eye_distance:.3g} m away — swapped files?")
+        reasons.append(Reason(
+            "FAIL", "implausible_result",
+            f"{name} puts the camera {np.linalg.norm(fit.X_H[:3, 3]):.3g} m from the "
+            f"{'flange' if result.mode == 'eye_in_hand' else 'robot base'} (more than "
+            f"--max-hand-eye-distance {result.settings['max_hand_eye_distance_m']:g} m)" + hint))
+    n_fit = int(np.sum(result.sample_used == "fit"))
+    if n_fit < MIN_SAMPLES:
+        reasons.append(Reason("WARN", "too_few_samples",
+                              f"only {n_fit} samples fit (≥ {MIN_SAMPLES} recommended)"))
+    held = result.held_out_residuals
+    if held.get("count", 0) >= 3 and not noisy:
+        d = np.radians(result.residual_deg[result.sample_used == "held_out"])
+        m = result.residual_m[result.sample_used == "held_out"]
+        stat = float(np.sum((d / fit.rotation_sigma) ** 2 + (m / fit.translation_sigma) ** 2))
+        dof = 6 * len(d)
+        if stat > chi2.ppf(0.999, dof):
+            reasons.append(Reason(
+                "WARN", "held_out",
+                f"the held-out samples fit worse than the noise of the fit (χ² {stat:.3g} for "
+                f"{dof} dof, 99.9 % bound {chi2.ppf(0.999, dof):.3g}): the result may not "
+                "generalize"))
+    if result.split is not None and not result.split.consistent and not noisy:
+        s = result.split
+        reasons.append(Reason(
+            "FAIL", "sigma",
+            f"the σ are too small: two independent halves of the samples give {name} estimates "
+            f"{s.rotation_diff_deg:.3g}° / {1000 * s.translation_diff:.3g} mm apart, NEES "
+            f"{s.nees:.3g} > {s.threshold:.3g} — unmodelled effects (clock offset, robot "
+            "kinematic errors, a target that moved) dominate the noise"))
+    obs = result.observability
+    if obs is not None and not result.settings["fixed"]:
+        if not obs.observable:
+            reasons.append(Reason("FAIL", "unobservable", "; ".join(obs.messages)))
+        elif obs.weak:
+            reasons.append(Reason("WARN", "weak", "; ".join(obs.messages)))
+    n = len(result.sample_used)
+    outliers = int(np.sum(result.sample_used == "outlier"))
+    if n and outliers > OUTLIER_FRACTIONS[1] * n:
+        reasons.append(Reason("FAIL", "outliers", f"{outliers} of {n} samples are outliers"))
+    elif n and outliers > OUTLIER_FRACTIONS[0] * n:
+        reasons.append(Reason("WARN", "outliers", f"{outliers} of {n} samples are outliers"))
+    est = result.time_offset
+    if est is not None and abs(est.offset) > 0.9 * est.search_range:
+        reasons.append(Reason("WARN", "time_offset",
+                              f"the clock offset {est.offset:+.4f} s is near the search bound "
+                              f"±{est.search_range:g} s (--time-offset-range)"))
+    for w in result.warnings:
+        if w.startswith("time offset not estimated"):
+            reasons.append(Reason("WARN", "time_offset", w))
+        elif w.startswith("the camera poses' systematic uncertainty"):
+            reasons.append(Reason("WARN", "self_calibrated_intrinsics",
+                                  w + "; calibrate the camera separately (--intrinsics) for a "
+                                  "more accurate result"))
+    status = "FAIL" if any(r.level == "FAIL" for r in reasons) else (
+        "WARN" if reasons else "OK")
+    return Verdict(status, reasons)
+
+
+__all__ = ["Alternative", "Hypothesis", "Reading", "Reason", "Verdict", "default_alternatives",
+           "explaining", "reading_of", "try_alternatives", "verdict"]
