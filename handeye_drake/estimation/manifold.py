@@ -41,7 +41,7 @@ from .se3 import (
     skew,
     vector_to_pose,
 )
-from .validation import as_transform, check_covariance
+from .validation import as_transform, check_covariance, check_noisy_rotation
 
 
 _I3 = np.eye(3)
@@ -228,17 +228,14 @@ def _noise_covariance(rotation_sigma: float, translation_sigma: float) -> np.nda
 def _measured_rotation(R, name: str) -> np.ndarray:
     """The nearest rotation of a measured (possibly non-orthonormal) rotation block; refuses
     blocks that are no noisy rotation at all (singular, or a reflection)."""
-    det = float(np.linalg.det(R))
-    if not det > 1e-6:
-        raise ValueError(f"{name}: rotation block is not a (noisy) rotation (det = {det:.3g}; a "
-                         "reflection or a singular matrix — a flipped axis in the data?)")
+    check_noisy_rotation(R, name)
     return orthonormalize_unchecked(R, "svd")
 
 
 def _check_sample(X_BE, X_CT) -> tuple[np.ndarray, np.ndarray]:
     X_BE = as_transform(X_BE, "X_BE", rigid=True)
     X_CT = as_transform(X_CT, "X_CT", rigid=False)
-    _measured_rotation(X_CT[:3, :3], "X_CT")
+    check_noisy_rotation(X_CT, "X_CT")  # (its projection onto SO(3) is the update's)
     return X_BE, X_CT
 
 

@@ -113,6 +113,7 @@ class HandEyeCalibrator(LeafSystem):
         self._covariance_in_port = self.DeclareVectorInputPort("X_CT_covariance", 36)
 
         initial = self._kind(self._config, X0).to_vector()
+        self._memo = (None, None)  # (state bytes, estimator): see _Estimator
         self._estimator_index = self.DeclareDiscreteState(initial)
         self._mode_index = self.DeclareDiscreteState([STATUS_COLLECTING])
         self._keys_index = self.DeclareDiscreteState((self._M + 1) * _SAMPLE)
@@ -190,11 +191,36 @@ class HandEyeCalibrator(LeafSystem):
 
     def estimator(self, context):
         """The estimator object held in ``context`` (a copy: changing it changes nothing)."""
-        return self._Estimator(context)
+        return self._Estimator(context)._copy()
+
+    def SetEstimator(self, context, estimator, X_CE_two_motion=None) -> None:
+        """Puts this system in ``context`` (its own context) in the filtering mode with the given
+        estimator's state — e.g. to resume from an earlier calibration, skipping the
+        self-calibration motions. ``estimator``: of this system's estimator type and settings
+        (``estimator_config``). ``X_CE_two_motion``: what the ``X_EC_two_motion`` output reports
+        (default: the estimator's current X_CE)."""
+        if type(estimator) is not self._kind or estimator.config != self._config:
+            raise ValueError(f"estimator: expected a {self._kind.__name__} with this system's "
+                             f"settings {self._config!r}, got {type(estimator).__name__}")
+        X_CE = (estimator.X_CE if X_CE_two_motion is None
+                else as_transform(X_CE_two_motion, "X_CE_two_motion"))
+        context.SetDiscreteState(self._estimator_index, estimator.to_vector())
+        context.SetDiscreteState(self._mode_index, [STATUS_FILTERING])
+        context.SetDiscreteState(self._two_motion_index, pose_to_vector(X_CE))
 
     def _Estimator(self, context):
-        return self._kind.from_vector(
-            self._config, context.get_discrete_state(self._estimator_index).get_value())
+        """The estimator of the state in ``context``, decoded once per distinct state: the
+        object is shared (by the outputs' cache, by the next update) and must not be changed —
+        ``_UpdateEstimate`` updates a ``_copy()``. Keyed by the state's bytes, so any context
+        holding the same state gets an equal estimator (``from_vector`` is an exact inverse of
+        ``to_vector``)."""
+        v = context.get_discrete_state(self._estimator_index).get_value()
+        key = v.tobytes()
+        memo_key, memo = self._memo
+        if key != memo_key:
+            memo = self._kind.from_vector(self._config, v)
+            self._memo = (key, memo)
+        return memo
 
     def _CalcEstimator(self, context, value):
         value.set_value(self._Estimator(context))
@@ -205,7 +231,7 @@ class HandEyeCalibrator(LeafSystem):
             return  # no measurement at this instant (e.g. the target was not detected)
         X_BE_vec = self._X_BE_port.Eval(context)
         X_CT_vec = self._X_CT_port.Eval(context)
-        if not (np.all(np.isfinite(X_BE_vec)) and np.all(np.isfinite(X_CT_vec))):
+        if not (np.isfinite(X_BE_vec).all() and np.isfinite(X_CT_vec).all()):
             raise ValueError(f"HandEyeCalibrator at t={context.get_time():.4f}: non-finite pose "
                              "on the X_BE or X_CT_measured input")
         X_BE, X_CT = vector_to_pose(X_BE_vec), vector_to_pose(X_CT_vec)
@@ -213,7 +239,7 @@ class HandEyeCalibrator(LeafSystem):
         if mode == STATUS_COLLECTING:
             self._Collect(context, discrete_state, np.concatenate([X_BE_vec, X_CT_vec]))
             return
-        estimator = self._Estimator(context)
+        estimator = self._Estimator(context)._copy()
         covariance = None
         if self._covariance_in_port.HasValue(context):
             covariance = self._covariance_in_port.Eval(context).reshape(6, 6)
@@ -221,7 +247,12 @@ class HandEyeCalibrator(LeafSystem):
             estimator._update(X_BE, X_CT)
         else:
             estimator._update(X_BE, X_CT, covariance)
-        discrete_state.set_value(self._estimator_index, estimator.to_vector())
+        self._SetEstimatorState(discrete_state, estimator)
+
+    def _SetEstimatorState(self, discrete_state, estimator) -> None:
+        v = estimator.to_vector()
+        discrete_state.set_value(self._estimator_index, v)
+        self._memo = (v.tobytes(), estimator)  # the next step's state: no decoding then
 
     def _Collect(self, context, discrete_state, sample):
         phase = float(self._phase_port.Eval(context)[0])
@@ -262,7 +293,7 @@ class HandEyeCalibrator(LeafSystem):
         if not (sample_buffered and start.used_samples):
             # This sample was not part of the start-up: it is the first on-line one.
             estimator._update(*(vector_to_pose(v) for v in sample.reshape(2, 12)))
-        discrete_state.set_value(self._estimator_index, estimator.to_vector())
+        self._SetEstimatorState(discrete_state, estimator)
         discrete_state.set_value(self._two_motion_index, pose_to_vector(X_CE0))
         discrete_state.set_value(self._mode_index, [mode])
 
