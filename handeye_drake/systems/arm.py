@@ -257,6 +257,8 @@ class DifferentialIkDriver(LeafSystem):
              velocity_scale * control_plant.GetVelocityUpperLimits()))
         self._params = params
         self._plant_context = control_plant.CreateDefaultContext()
+        control_plant.SetVelocities(self._plant_context, np.zeros(n))
+        self._world_frame = control_plant.world_frame()
 
         self._V_port = self.DeclareVectorInputPort("V_WE_E_command", 6)
         self._cmd_index = self.DeclareDiscreteState(np.concatenate([q0, np.zeros(n)]))
@@ -304,19 +306,19 @@ class DifferentialIkDriver(LeafSystem):
         V_WE_E = self._V_port.Eval(context)
         v = np.zeros(n)
         status = _STATUS_NO_SOLUTION
-        if np.all(np.isfinite(V_WE_E)):
+        if np.isfinite(V_WE_E).all():
+            # (The private context's velocities stay zero: set once, in the constructor.)
             self._plant.SetPositions(self._plant_context, q)
-            self._plant.SetVelocities(self._plant_context, np.zeros(n))
             # DoDifferentialInverseKinematics takes V_WE expressed in W (about E's origin): only a
             # rotation, no change of reference point.
             R_WE = self._plant.CalcRelativeRotationMatrix(
-                self._plant_context, self._plant.world_frame(), self._frame_E).matrix()
+                self._plant_context, self._world_frame, self._frame_E).matrix()
             V_WE_W = np.concatenate([R_WE @ V_WE_E[:3], R_WE @ V_WE_E[3:]])
             result = DoDifferentialInverseKinematics(
                 self._plant, self._plant_context, V_WE_W, self._frame_E, self._params)
             status = float(int(result.status))
             if (result.joint_velocities is not None and status != _STATUS_NO_SOLUTION
-                    and np.all(np.isfinite(result.joint_velocities))):
+                    and np.isfinite(result.joint_velocities).all()):
                 v = np.asarray(result.joint_velocities, dtype=float).reshape(n)
             else:
                 status = _STATUS_NO_SOLUTION
@@ -373,15 +375,17 @@ class EndEffectorPoseSensor(LeafSystem):
     def get_X_BE_output_port(self):
         return self._X_BE_port
 
-    def _frame_pose(self, context, frame) -> np.ndarray:
+    @staticmethod
+    def _frame_pose(poses, frame) -> np.ndarray:
         body_index, X_BodyF = frame
-        X_WBody = self._body_poses_port.Eval(context)[body_index].GetAsMatrix4()
-        return X_WBody @ X_BodyF
+        return poses[body_index].GetAsMatrix4() @ X_BodyF
 
     def _CalcX_WE(self, context, output) -> None:
-        output.SetFromVector(pose_to_vector(self._frame_pose(context, self._E)))
+        poses = self._body_poses_port.Eval(context)
+        output.SetFromVector(pose_to_vector(self._frame_pose(poses, self._E)))
 
     def _CalcX_BE(self, context, output) -> None:
-        X_WB = self._frame_pose(context, self._B)
-        X_WE = self._frame_pose(context, self._E)
+        poses = self._body_poses_port.Eval(context)  # (one conversion of the list to Python)
+        X_WB = self._frame_pose(poses, self._B)
+        X_WE = self._frame_pose(poses, self._E)
         output.SetFromVector(pose_to_vector(inverse(X_WB) @ X_WE))
