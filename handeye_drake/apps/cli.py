@@ -5,7 +5,7 @@ no application imports this module back.
     handeye-drake scenario    the default scenario as YAML
     handeye-drake calibrate   hand-eye calibration from recorded robot and camera poses
     handeye-drake reproduce   the paper's experiments (Figures 2–10)
-    handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit
+    handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit; speed
 
 Exit status: 0 success, 1 a result that should not be trusted under ``--strict``, 2 bad input
 (one ``handeye-drake: error: ...`` line, no traceback), 130 interrupted.
@@ -16,11 +16,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import accuracy, calibrate, reproduce, simulate
+from . import accuracy, calibrate, reproduce, simulate, speed
 
 APPLICATIONS = (simulate, calibrate, reproduce)
 #: Sub-commands of ``handeye-drake benchmark``.
-BENCHMARKS = (accuracy,)
+BENCHMARKS = (accuracy, speed)
 
 
 def make_parser() -> argparse.ArgumentParser:

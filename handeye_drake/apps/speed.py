@@ -399,5 +399,412 @@ def _format_row(row: dict) -> str:
     mark = "" if target is None else ("  [MET]" if row["ratio"] <= target else "  [NOT MET]")
     bound = "" if target is None else f" (target ≤ {target:g}×)"
     unit = row.get("unit", "µs")
-    return (f"  {row['what']}: {row['value_us']:.1f} {unit} vs {row['reference']} "
-            f"{row['reference_us']:.1f} {unit} → {row['ratio']:.2f}×{bound}{mark}")
+    digits = 3 if unit == "s" else 1
+    return (f"  {row['what']}: {row['value_us']:.{digits}f} {unit} vs {row['reference']} "
+            f"{row['reference_us']:.{digits}f} {unit} → {row['ratio']:.2f}×{bound}{mark}")
+
+
+# ---------------------------------------------------------------------------------------------
+# The calibrator system in a diagram vs the bare estimator.
+
+def calibrator_section(repeats: int, num_samples: int = 300, log=print) -> list[dict]:
+    """Per-sample cost of ``HandEyeCalibrator`` stepped by a Simulator (inputs from C++
+    ``TrajectorySource``s replaying recorded samples, the X_EC estimate logged) against the bare
+    estimator's ``_update`` on the same samples; both must end with the same estimate."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from ..estimation.configs import TargetFilter
+    from ..estimation.manifold import HandEyeTargetFilter
+    from ..estimation.se3 import make_transform, pose_to_vector, rotation_exp
+    from ..systems.calibrator import HandEyeCalibrator
+
+    period = 1.0 / 30.0
+    X_BE, X_CT, X_CE, _ = sample_poses(num_samples)
+    X0 = make_transform(rotation_exp([0.01, -0.008, 0.006]) @ X_CE[:3, :3],
+                        X_CE[:3, 3] + [0.003, -0.002, 0.002])
+    config = TargetFilter(rotation_sigma=0.002, translation_sigma=0.0005).validated()
+    times = period * np.arange(num_samples + 1)
+    vectors = [np.array([pose_to_vector(X) for X in Xs] + [pose_to_vector(Xs[-1])]).T
+               for Xs in (X_BE, X_CT)]
+
+    builder = DiagramBuilder()
+    calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
+        period=period, X_CE_initial_guess=X0, estimator=config))
+    for port, data in zip((calibrator.get_X_BE_input_port(), calibrator.get_X_CT_input_port()),
+                          vectors):
+        source = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(times,
+                                                                                       data)))
+        builder.Connect(source.get_output_port(), port)
+    phase = builder.AddSystem(ConstantVectorSource([2.0]))
+    builder.Connect(phase.get_output_port(), calibrator.get_phase_input_port())
+    logger = LogVectorOutput(calibrator.get_X_EC_output_port(), builder, period)
+    diagram = builder.Build()
+    end = (num_samples - 1) * period + 0.75 * period  # the last update is at (n − ½) periods
+
+    def system():
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        calibrator.SetEstimator(calibrator.GetMyMutableContextFromRoot(context),
+                                HandEyeTargetFilter(config, X0))
+        start = time.perf_counter()
+        simulator.Initialize()
+        simulator.AdvanceTo(end)
+        seconds = time.perf_counter() - start
+        est = calibrator.estimator(calibrator.GetMyContextFromRoot(context))
+        return seconds, (est, logger.FindLog(context).num_samples())
+
+    X_BE_list, X_CT_list = list(X_BE), list(X_CT)
+
+    def bare():
+        est = HandEyeTargetFilter(config, X0)
+        start = time.perf_counter()
+        for a, b in zip(X_BE_list, X_CT_list):
+            est._update(a, b)
+        return time.perf_counter() - start, est
+
+    timings = interleaved({"system": system, "bare": bare}, repeats)
+    est, logged = timings["system"][2]
+    if not np.array_equal(est.X_CE, timings["bare"][2].X_CE):
+        raise AssertionError("the calibrator system and the bare estimator disagree")
+    us = 1e6 * timings["system"][0] / num_samples
+    ref = 1e6 * timings["bare"][0] / num_samples
+    row = {"section": "calibrator", "what": f"HandEyeCalibrator (TargetFilter) per sample in a "
+           f"Simulator ({num_samples} samples, estimate logged: {logged} samples)",
+           "value_us": us, "reference": "bare HandEyeTargetFilter._update", "reference_us": ref,
+           "ratio": us / ref, "target": None}
+    log(_format_row(row))
+    return [row]
+
+
+# ---------------------------------------------------------------------------------------------
+# The closed loop vs the arm driven by Drake's C++ differential IK.
+
+def arm_reference_diagram(scenario, twist_duration: float | None = None):
+    """The scenario's arm plant (same ``plant_config``, same start) driven by Drake's C++
+    ``DifferentialInverseKinematicsIntegrator`` at our driver's time step and joint limits,
+    toward a fixed pose reached at a constant end-effector twist (its speed limits) — and nothing
+    else. Returns (diagram, integrator, plant, q0)."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.inverse_kinematics import (
+        DifferentialInverseKinematicsIntegrator,
+        DifferentialInverseKinematicsParameters,
+    )
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import (
+        ConstantValueSource,
+        StateInterpolatorWithDiscreteDerivative,
+    )
+
+    from ..estimation.se3 import make_transform, rotation_exp
+    from ..scenario import transform_matrix
+    from ..systems.arm import add_arm, make_control_plant
+
+    a = scenario.arm
+    X_WB = transform_matrix(a.X_WB, "arm.X_WB")
+    q0 = np.radians(a.q0_deg)
+    builder = DiagramBuilder()
+    handles = add_arm(builder, plant_config=scenario.plant_config, urdf=a.urdf or None,
+                      base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
+    control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame, X_WB=X_WB)
+    n = control.num_positions()
+    dt = scenario.period / 3.0  # our DifferentialIkDriver's step
+    params = DifferentialInverseKinematicsParameters(n, n)
+    params.set_joint_position_limits((control.GetPositionLowerLimits(),
+                                      control.GetPositionUpperLimits()))
+    params.set_joint_velocity_limits((control.GetVelocityLowerLimits(),
+                                      control.GetVelocityUpperLimits()))
+    # A twist of 0.05 rad/s about E's x axis and 1 cm/s along its y, z axes, held by the speed
+    # limits until the pose it leads to (after the whole run) is reached.
+    duration = scenario.duration if twist_duration is None else twist_duration
+    w, v = 0.05, 0.01
+    params.set_end_effector_angular_speed_limit(w)
+    params.set_end_effector_translational_velocity_limits([-v] * 3, [v] * 3)
+    frame_E = control.GetFrameByName(a.ee_frame)
+    ik = builder.AddNamedSystem("diff_ik_integrator", DifferentialInverseKinematicsIntegrator(
+        control, frame_E, dt, params))
+    context = control.CreateDefaultContext()
+    control.SetPositions(context, q0)
+    X_WE0 = control.CalcRelativeTransform(context, control.world_frame(), frame_E).GetAsMatrix4()
+    X_WE_goal = X_WE0 @ make_transform(rotation_exp([w * duration, 0.0, 0.0]),
+                                       [0.0, v * duration, v * duration])
+    goal = builder.AddSystem(ConstantValueSource(AbstractValue.Make(RigidTransform(X_WE_goal))))
+    builder.Connect(goal.get_output_port(), ik.GetInputPort("X_AE_desired"))
+    to_state = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(
+        n, dt, suppress_initial_transient=True))
+    builder.Connect(ik.get_output_port(), to_state.get_input_port())
+    builder.Connect(to_state.get_output_port(),
+                    handles.plant.get_desired_state_input_port(handles.model_instance))
+    return builder.Build(), ik, handles.plant, q0
+
+
+def loop_section(repeats: int, log=print) -> list[dict]:
+    """The default closed loop (``run_scenario``'s simulation time) against the arm alone driven
+    by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration."""
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from ..scenario import load_scenario
+    from ..simulation import run_scenario
+
+    scenario = load_scenario()
+    diagram, ik, plant, q0 = arm_reference_diagram(scenario)
+
+    def reference():
+        simulator = Simulator(diagram)
+        ApplySimulatorConfig(scenario.simulator_config, simulator)
+        context = simulator.get_mutable_context()
+        ik.SetPositions(ik.GetMyMutableContextFromRoot(context), q0)
+        start = time.perf_counter()
+        simulator.Initialize()
+        simulator.AdvanceTo(scenario.duration)
+        return time.perf_counter() - start, None
+
+    def loop():
+        result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo, as above
+        return result.wall_time, result
+
+    timings = interleaved({"loop": loop, "reference": reference}, repeats)
+    summary = timings["loop"][2].summary()
+    ours, ref = timings["loop"][0], timings["reference"][0]
+    row = {"section": "loop", "what": f"closed loop (default scenario, {scenario.duration:g} s "
+           f"simulated; real-time factor {scenario.duration / ours:.2f})", "value_us": ours,
+           "unit": "s", "reference": f"arm + C++ DifferentialInverseKinematicsIntegrator "
+           f"(real-time factor {scenario.duration / ref:.2f})", "reference_us": ref,
+           "ratio": ours / ref, "target": TARGETS["loop"],
+           "final_rotation_error_deg": summary["final_rotation_error_deg"]}
+    log(_format_row(row))
+    return [row]
+
+
+# ---------------------------------------------------------------------------------------------
+# The rendered loop (a hook: filled in once camera.model has a rendered variant).
+
+def rendered_model_type():
+    """The rendered camera model's settings type, if the scenario schema has one."""
+    import typing
+
+    from ..scenario import CameraModel
+    for t in typing.get_args(CameraModel) or (CameraModel,):
+        if "render" in t.__name__.lower():
+            return t
+    return None
+
+
+def rendered_section(repeats: int, log=print) -> list[dict]:
+    """The rendered loop against rendering and detecting the same frames alone (target ≤ 1.3×).
+    To fill in with the rendered camera: time ``run_scenario`` of a scenario whose
+    ``camera.model`` is the rendered variant, against a loop that renders (the same
+    ``RgbdSensor``, same poses) and runs the detector on the same number of frames."""
+    model = rendered_model_type()
+    if model is None:
+        log("  rendered loop: not available yet (camera.model has no rendered variant)")
+        return [{"section": "rendered", "what": "rendered loop", "status": "not available yet"}]
+    log(f"  rendered loop: camera model {model.__name__} found, but this benchmark has no "
+        "measurement for it yet (apps/speed.py: rendered_section)")
+    return [{"section": "rendered", "what": "rendered loop", "status": "not measured"}]
+
+
+# ---------------------------------------------------------------------------------------------
+# calibrate on growing recordings, beside OpenCV.
+
+def write_recording(directory, num_camera: int, seed: int = 0):
+    """TUM files of ``recorded.example``'s pose model (robot at 50 Hz, camera at 15 Hz stamped
+    0.02 s late, 0.1° / 0.5 mm noise) with ``num_camera`` camera samples. Returns (robot path,
+    camera path, synchronized X_BE (N, 4, 4), X_CT (N, 4, 4)) — the pairs OpenCV gets."""
+    from scipy.spatial.transform import Rotation
+
+    from ..estimation.se3 import inverse
+    from ..recorded import example as ex
+
+    def poses(t):
+        """``example.camera_pose`` vectorized: X_BC (len(t), 4, 4)."""
+        angles = np.radians(np.stack([25.0 * np.sin(2 * np.pi * 0.11 * t + 0.3),
+                                      20.0 * np.sin(2 * np.pi * 0.17 * t + 1.1),
+                                      30.0 * np.sin(2 * np.pi * 0.07 * t + 2.0)], axis=1))
+        R = Rotation.from_euler("xyz", [np.pi, 0.0, 0.0]).as_matrix() @ \
+            Rotation.from_euler("xyz", angles).as_matrix()
+        distance = 0.5 + 0.05 * np.sin(2 * np.pi * 0.13 * t)
+        offset = np.stack([0.03 * np.sin(2 * np.pi * 0.19 * t),
+                           0.03 * np.cos(2 * np.pi * 0.23 * t), 0 * t], axis=1)
+        X = np.zeros((len(t), 4, 4))
+        X[:, :3, :3] = R
+        X[:, :3, 3] = ex.X_BT[:3, 3] + offset - distance[:, None] * R[:, :, 2]
+        X[:, 3, 3] = 1.0
+        return X
+
+    def tum(path, header, t, X):
+        q = Rotation.from_matrix(X[:, :3, :3]).as_quat()  # x y z w
+        q *= np.where(q[:, 3:] < 0, -1.0, 1.0)
+        rows = np.column_stack([t, X[:, :3, 3], q])
+        with open(path, "w") as f:
+            f.write(header + "\n# timestamp tx ty tz qx qy qz qw\n")
+            np.savetxt(f, rows, fmt=["%.6f"] + ["%.6f"] * 3 + ["%.8f"] * 4)
+
+    rng = np.random.default_rng(seed)
+    X_CE = inverse(ex.TRUE_X_EC)
+    duration = (num_camera - 1) / ex.CAMERA_RATE
+    t_robot = np.arange(int(np.ceil(duration * ex.ROBOT_RATE)) + 2) / ex.ROBOT_RATE - 0.04
+    t_camera = np.arange(num_camera) / ex.CAMERA_RATE
+    X_BE = poses(t_robot) @ X_CE
+    X_BC = poses(t_camera)
+    X_CT = np.linalg.inv(X_BC) @ ex.X_BT
+    noise = Rotation.from_rotvec(np.radians(ex.ROTATION_NOISE_DEG)
+                                 * rng.normal(size=(num_camera, 3))).as_matrix()
+    X_CT[:, :3, :3] = noise @ X_CT[:, :3, :3]
+    X_CT[:, :3, 3] += ex.TRANSLATION_NOISE * rng.normal(size=(num_camera, 3))
+    robot, camera = Path(directory) / "robot.tum", Path(directory) / "camera.tum"
+    tum(robot, "# X_BE (end-effector in base), metres", t_robot, X_BE)
+    tum(camera, "# X_CT (target in camera), metres", t_camera + ex.TIME_OFFSET, X_CT)
+    return robot, camera, poses(t_camera) @ X_CE, X_CT
+
+
+def _opencv_calibrate(X_BE, X_CT):
+    import cv2
+    R, t = cv2.calibrateHandEye([X[:3, :3] for X in X_BE], [X[:3, 3] for X in X_BE],
+                                [X[:3, :3] for X in X_CT], [X[:3, 3] for X in X_CT],
+                                method=cv2.CALIB_HAND_EYE_PARK)
+    X = np.eye(4)
+    X[:3, :3], X[:3, 3] = R, np.ravel(t)
+    return X
+
+
+def calibrate_section(sizes=CALIBRATE_SIZES, log=print) -> list[dict]:
+    """``handeye-drake calibrate`` (in this process, output to a temporary directory) on
+    recordings of each size; OpenCV's Park on the same synchronized pairs where its all-pairs
+    formulation stays below ``OPENCV_MAX_PAIRS`` motions."""
+    from ..estimation.errors import rotation_error_deg
+    from ..recorded.example import TRUE_X_EC
+    from .cli import main as cli_main
+
+    try:
+        import cv2  # noqa: F401
+        cv_reason = None
+    except ImportError as e:
+        cv_reason = f"OpenCV not importable ({e})"
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="handeye-speed-") as tmp:
+        for n in sizes:
+            d = Path(tmp) / str(n)
+            d.mkdir()
+            robot, camera, X_BE, X_CT = write_recording(d, n)
+            out = io.StringIO()
+            start = time.perf_counter()
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
+                code = cli_main(["calibrate", "--robot", str(robot), "--camera", str(camera),
+                                 "--out", str(d / "out")])
+            seconds = time.perf_counter() - start
+            row = {"section": "calibrate", "pairs": n, "seconds": seconds,
+                   "us_per_pair": 1e6 * seconds / n, "exit_code": code}
+            result = d / "out" / "calibration.json"
+            if code == 0 and result.is_file():
+                data = json.loads(result.read_text())
+                X = data.get("X_EC")
+                if X is not None:
+                    row["rotation_error_deg"] = rotation_error_deg(TRUE_X_EC, np.array(X))
+            motions = n * (n - 1) // 2
+            if cv_reason is not None:
+                row["opencv"] = cv_reason
+            elif motions > OPENCV_MAX_PAIRS:
+                row["opencv"] = (f"skipped: calibrateHandEye uses all {motions:.3g} pairs of "
+                                 "poses (its matrices would not fit in memory)")
+            else:
+                start = time.perf_counter()
+                X_cv = _opencv_calibrate(X_BE, X_CT)
+                row["opencv_seconds"] = time.perf_counter() - start
+                row["opencv_rotation_error_deg"] = rotation_error_deg(TRUE_X_EC, X_cv)
+            rows.append(row)
+            log(_format_calibrate(row))
+    ok = [r for r in rows if r["exit_code"] == 0]
+    if len(ok) >= 2:
+        slope = float(np.polyfit(np.log([r["pairs"] for r in ok]),
+                                 np.log([r["seconds"] for r in ok]), 1)[0])
+        rows.append({"section": "calibrate", "growth_exponent": slope})
+        log(f"  calibrate: wall time grows as N^{slope:.2f} (log-log fit over "
+            f"{', '.join(str(r['pairs']) for r in ok)} pairs)")
+    return rows
+
+
+def _format_calibrate(row: dict) -> str:
+    text = (f"  calibrate, {row['pairs']:>6d} pairs: {row['seconds']:8.2f} s "
+            f"({row['us_per_pair']:.0f} µs/pair)")
+    if row["exit_code"] != 0:
+        text += f", exit code {row['exit_code']}"
+    elif "rotation_error_deg" in row:
+        text += f", rotation error {row['rotation_error_deg']:.4f}°"
+    if "opencv_seconds" in row:
+        text += (f"; OpenCV Park {row['opencv_seconds']:.3f} s "
+                 f"({1e6 * row['opencv_seconds'] / row['pairs']:.0f} µs/pair, error "
+                 f"{row['opencv_rotation_error_deg']:.4f}°)")
+    elif "opencv" in row:
+        text += f"; OpenCV {row['opencv']}"
+    return text
+
+
+# ---------------------------------------------------------------------------------------------
+# Driver and command line.
+
+def run_speed_benchmark(sections=SECTIONS, repeats: int = 7, loop_repeats: int = 3,
+                        calibrate_sizes=CALIBRATE_SIZES, log=print) -> dict:
+    """Runs the requested sections and returns the JSON-able report."""
+    unknown = [s for s in sections if s not in SECTIONS]
+    if unknown:
+        raise ValueError(f"sections: unknown {unknown}, expected a subset of {SECTIONS}")
+    for name, v in (("repeats", repeats), ("loop_repeats", loop_repeats)):
+        if isinstance(v, bool) or int(v) != v or v < 1:
+            raise ValueError(f"{name}: expected a positive integer, got {v!r}")
+    blas = pin_blas_threads()
+    report = {"blas": blas, "load_average_before": load_average(), "rows": []}
+    log(f"BLAS: {blas}; load average {report['load_average_before']} (1, 5, 15 min)")
+    start = time.perf_counter()
+    for section in sections:
+        log(f"[{section}]")
+        if section == "estimators":
+            report["rows"] += estimator_section(repeats, log=log)
+        elif section == "calibrator":
+            report["rows"] += calibrator_section(repeats, log=log)
+        elif section == "loop":
+            report["rows"] += loop_section(loop_repeats, log=log)
+        elif section == "rendered":
+            report["rows"] += rendered_section(loop_repeats, log=log)
+        else:
+            report["rows"] += calibrate_section(calibrate_sizes, log=log)
+    report["load_average_after"] = load_average()
+    report["wall_time_s"] = time.perf_counter() - start
+    log(f"load average after: {report['load_average_after']}; {report['wall_time_s']:.0f} s")
+    return report
+
+
+def _speed(args) -> int:
+    json_path = check_output_file(args.json, "--json", args.force) if args.json else None
+    report = run_speed_benchmark(args.sections, args.repeats, args.loop_repeats,
+                                 args.calibrate_sizes)
+    report["command"] = " ".join(["handeye-drake"] + sys.argv[1:])
+    if json_path is not None:
+        json_path.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"wrote {json_path}")
+    return 0
+
+
+def add_parser(benchmark_subparsers) -> argparse.ArgumentParser:
+    """Adds ``speed`` to the ``benchmark`` command's sub-parsers (the CLI's)."""
+    p = benchmark_subparsers.add_parser(
+        "speed", help="cost of the estimators, the calibrator system, the closed loop and "
+        "calibrate, each as a ratio against a reference measured in the same run",
+        description="Times each piece against a reference measured beside it (interleaved, "
+        "medians, one BLAS thread) and prints the ratios with the machine's load average.")
+    p.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS),
+                   help="what to measure (default all)")
+    p.add_argument("--repeats", type=int, default=7, metavar="N",
+                   help="timings per side for the estimator and calibrator sections (default 7)")
+    p.add_argument("--loop-repeats", type=int, default=3, metavar="N",
+                   help="timings per side for the closed loop (default 3)")
+    p.add_argument("--calibrate-sizes", type=int, nargs="+", default=list(CALIBRATE_SIZES),
+                   metavar="N", help="camera samples of the calibrate recordings "
+                   "(default 100 1000 10000 100000)")
+    p.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --json file")
+    p.set_defaults(func=_speed)
+    return p
