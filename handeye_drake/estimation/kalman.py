@@ -170,6 +170,9 @@ class HandEyeKalmanFilter(EstimatorBase):
     def _setup(self) -> None:
         c = self.config
         self._G1 = np.diag(c.process_variances) if c.process_variances else np.zeros((12, 12))
+        self._G2_diagonal = np.diag([c.rotation_coefficient_sigma**2] * 9
+                                    + [c.translation_sigma**2] * 3)
+        self._G2_diagonal.flags.writeable = False
         self._gate = min(gate_threshold(c.gate_probability, 12),
                          12 * defaults.GROSS_ERROR_SIGMAS**2)
         self._min_rotation = math.radians(c.min_rotation_deg)
@@ -178,12 +181,12 @@ class HandEyeKalmanFilter(EstimatorBase):
     def measurement_covariance(self, B) -> np.ndarray:
         """G2 this filter uses for a robot motion B at the current estimate."""
         B = as_transform(B, "B", rigid=True)
-        return self._G2(B[:3, :3])
+        return self._G2(B[:3, :3]).copy()
 
     def _G2(self, R_B) -> np.ndarray:
         c = self.config
         if c.noise_covariance == "diagonal":
-            return np.diag([c.rotation_coefficient_sigma**2] * 9 + [c.translation_sigma**2] * 3)
+            return self._G2_diagonal
         X = self._X_CE_hat()
         return _exact_covariance(c.rotation_coefficient_sigma, c.translation_sigma, X[:3, :3],
                                  X[:3, 3], R_B)
