@@ -40,10 +40,12 @@ def _number(value, name: str, lo: typing.Optional[float] = 0.0, lo_open: bool = 
     return v
 
 
-def _integer(value, name: str, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-            not math.isfinite(value) or int(value) != value or value < lo:
-        raise ValueError(f"{name}: expected an integer ≥ {lo}, got {value!r}")
+def _integer(value, name: str, lo: int, hi: int) -> int:
+    ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+          and (isinstance(value, int) or math.isfinite(value)) and lo <= value <= hi
+          and int(value) == value)
+    if not ok:
+        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
     return int(value)
 
 
@@ -169,9 +171,10 @@ class ManifoldFilter:
             process_variances=_variances(self.process_variances, f"{prefix}.process_variances",
                                          6, True),
             gate_probability=_probability(self.gate_probability, f"{prefix}.gate_probability"),
-            iterations=_integer(self.iterations, f"{prefix}.iterations", 1),
+            iterations=_integer(self.iterations, f"{prefix}.iterations", 1, 100),
             max_consecutive_rejections=None if self.max_consecutive_rejections is None else
-            _integer(self.max_consecutive_rejections, f"{prefix}.max_consecutive_rejections", 1),
+            _integer(self.max_consecutive_rejections, f"{prefix}.max_consecutive_rejections", 1,
+                     10**6),
             min_rotation_deg=_number(self.min_rotation_deg, f"{prefix}.min_rotation_deg", 0.0,
                                      hi=180.0),
             start=_choice(self.start, f"{prefix}.start", ("two_motion", "ml")),
@@ -214,9 +217,10 @@ class TargetFilter:
             process_variances=_variances(self.process_variances, f"{prefix}.process_variances",
                                          6, True),
             gate_probability=_probability(self.gate_probability, f"{prefix}.gate_probability"),
-            iterations=_integer(self.iterations, f"{prefix}.iterations", 1),
+            iterations=_integer(self.iterations, f"{prefix}.iterations", 1, 100),
             max_consecutive_rejections=None if self.max_consecutive_rejections is None else
-            _integer(self.max_consecutive_rejections, f"{prefix}.max_consecutive_rejections", 1),
+            _integer(self.max_consecutive_rejections, f"{prefix}.max_consecutive_rejections", 1,
+                     10**6),
             use_measurement_covariance=bool(self.use_measurement_covariance),
             replay_self_calibration=bool(self.replay_self_calibration))
 

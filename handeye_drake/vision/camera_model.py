@@ -48,6 +48,10 @@ class CameraIntrinsics:
         theta: angle between the image axes in radians, in (0, π); π/2 means no skew.
         u0, v0: principal point in pixels.
         width, height: image size in pixels (integers ≥ 1).
+        distortion: OpenCV's distortion coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2,
+            s3, s4[, τx, τy]]]]): 0, 4, 5, 8, 12 or 14 numbers; () means none. Only the OpenCV
+            based functions (``vision.detection``, ``vision.intrinsics``) apply it; the pinhole
+            functions of this module (projection, interaction matrices, IBVS) use K alone.
     """
 
     alpha_u: float
@@ -57,6 +61,7 @@ class CameraIntrinsics:
     v0: float = 240.0
     width: int = 640
     height: int = 480
+    distortion: tuple = ()
 
     def __post_init__(self):
         self.validate()
@@ -72,6 +77,26 @@ class CameraIntrinsics:
         f = 0.5 * height_f / math.tan(0.5 * fov_y)
         return cls(alpha_u=f, alpha_v=f, theta=math.pi / 2, u0=0.5 * float(width),
                    v0=0.5 * height_f, width=width, height=height)
+
+    @classmethod
+    def from_matrix(cls, K, width: int, height: int, distortion=()) -> "CameraIntrinsics":
+        """From a 3×3 intrinsic matrix (OpenCV's camera matrix, skew allowed, K[2] = [0, 0, 1]),
+        the image size and OpenCV distortion coefficients."""
+        K = as_matrix(K, "K", (3, 3))
+        if K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+            raise ValueError(f"K: expected an upper-triangular intrinsic matrix with last row "
+                             f"[0, 0, 1], got {K.tolist()}")
+        if K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise ValueError(f"K: focal lengths K[0,0] and K[1,1] must be > 0, got "
+                             f"{K[0, 0]!r}, {K[1, 1]!r}")
+        theta = math.atan2(K[0, 0], -K[0, 1])  # K[0,1] = −α_u cot θ
+        return cls(alpha_u=K[0, 0], alpha_v=K[1, 1] * math.sin(theta), theta=theta, u0=K[0, 2],
+                   v0=K[1, 2], width=width, height=height, distortion=distortion)
+
+    @property
+    def distortion_coefficients(self) -> np.ndarray | None:
+        """The distortion as an array for OpenCV's ``distCoeffs``, None when there is none."""
+        return np.array(self.distortion, dtype=float) if self.distortion else None
 
     def validate(self) -> None:
         """Raises ValueError naming the offending field. Also normalizes the field types (floats,
@@ -102,14 +127,17 @@ class CameraIntrinsics:
                 raise ValueError(f"CameraIntrinsics.{name}: image size must be an integer ≥ 1 "
                                  f"pixel, got {getattr(self, name)!r}")
             values[name] = int(round(values[name]))
+        values["distortion"] = _validate_distortion(self.distortion)
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
     @property
     def K(self) -> np.ndarray:
         """3×3 intrinsic matrix (see the module docstring)."""
+        # Exactly 0 without skew (1/tan(π/2) is 6e-17 in floating point).
+        skew = 0.0 if self.theta == math.pi / 2 else -self.alpha_u / math.tan(self.theta)
         return np.array([
-            [self.alpha_u, -self.alpha_u / math.tan(self.theta), self.u0],
+            [self.alpha_u, skew, self.u0],
             [0.0, self.alpha_v / math.sin(self.theta), self.v0],
             [0.0, 0.0, 1.0],
         ])
@@ -117,6 +145,29 @@ class CameraIntrinsics:
     @property
     def K_inv(self) -> np.ndarray:
         return np.linalg.inv(self.K)
+
+
+#: Lengths of OpenCV's distortion vectors (plumb bob with or without k3, rational, thin prism,
+#: tilted sensor).
+DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
+
+
+def _validate_distortion(raw) -> tuple:
+    if isinstance(raw, (str, bytes)):
+        raise ValueError(f"CameraIntrinsics.distortion: expected a sequence of numbers, got "
+                         f"{raw!r}")
+    try:
+        d = np.asarray(raw if raw is not None else (), dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"CameraIntrinsics.distortion: expected a sequence of numbers, got "
+                         f"{raw!r}") from None
+    if d.size not in DISTORTION_LENGTHS:
+        lengths = ", ".join(map(str, DISTORTION_LENGTHS))
+        raise ValueError(f"CameraIntrinsics.distortion: OpenCV takes {lengths} "
+                         f"coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6…]]), got {d.size}")
+    if not np.all(np.isfinite(d)):
+        raise ValueError(f"CameraIntrinsics.distortion: must be finite, got {d.tolist()}")
+    return tuple(float(v) for v in d)
 
 
 def _check_intrinsics(intrinsics, name: str = "intrinsics") -> CameraIntrinsics:
@@ -371,6 +422,7 @@ def default_self_calibration_motions(pivot_E, angle: float = math.radians(15.0),
 
 
 __all__ = [
+    "DISTORTION_LENGTHS",
     "MIN_DEPTH",
     "POSE_NOISE_MODELS",
     "CameraIntrinsics",

@@ -338,3 +338,33 @@ def test_a_filter_that_rejects_everything_says_so():
     assert f2.num_updates == 0 and f2.num_rejected == 20
     assert any("rejected 20 of 20" in m for m in f2.diagnostics())
     assert any("no sample accepted" in m for m in f2.diagnostics())
+
+
+# ---------------------------------------------------------- settings: arbitrary values are refused
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+ANYTHING = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=5),
+                     st.lists(st.floats(), max_size=13), st.just(float("inf")),
+                     st.just(10**400), st.just([1e308] * 12))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from([PaperFilter, ManifoldFilter, TargetFilter]), st.data())
+def test_any_settings_value_is_accepted_or_a_value_error_naming_the_field(kind, data):
+    """Each field set to an arbitrary value (None, inf, 10⁴⁰⁰, strings, wrong lists): building the
+    estimator either works or raises ValueError naming that field — never TypeError,
+    OverflowError or AttributeError."""
+    import dataclasses
+    base = {"PaperFilter": dict(rotation_coefficient_sigma=0.01, translation_sigma=0.01),
+            "ManifoldFilter": dict(rotation_sigma=0.01, translation_sigma=0.01),
+            "TargetFilter": dict(rotation_sigma=0.01, translation_sigma=0.01)}[kind.__name__]
+    field = data.draw(st.sampled_from([f.name for f in dataclasses.fields(kind)]))
+    value = data.draw(ANYTHING)
+    config = kind(**{**base, field: value})
+    try:
+        est = make_estimator(config, np.eye(4))
+    except ValueError as e:
+        assert f"{kind.__name__}.{field}" in str(e), str(e)
+    else:
+        assert np.all(np.isfinite(est.to_vector()[:12]))
