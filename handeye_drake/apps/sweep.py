@@ -22,7 +22,8 @@ Output (``--out``, the policy of ``apps.outputs``):
   (rotation in degrees, translation in % of ‖t_EC‖), the final feature error (px), the filter's
   counters and diagnostics, simulated and wall time. A run that raises is recorded with its error;
   the sweep goes on. A sweep killed mid-way loses at most the runs in flight: ``--resume`` reads
-  the table and runs only the missing (setting, seed) pairs.
+  the table and runs only the missing (setting, seed) pairs (with more ``--seeds``, it extends
+  the sweep).
 - ``sweep.json``: the sweep's definition (scenario text, ``--set`` values, seeds), which
   ``--resume`` checks.
 - ``errors.png``: box plots of the two-motion and final errors per setting; ``summary.md``: the
@@ -347,9 +348,11 @@ def run_sweep(spec: SweepSpec, out, executor=None, resume: bool = False, force: 
                 earlier = json.loads(spec_path.read_text())
             except (OSError, ValueError):
                 earlier = None
-            if earlier != spec.to_json():
+            mine = spec.to_json()
+            if not isinstance(earlier, dict) or any(earlier.get(k) != mine[k]
+                                                    for k in ("scenario", "sets")):
                 raise ValueError(f"--resume: {out} holds another sweep (its {SPEC} differs: "
-                                 "other scenario, --set values or --seeds)")
+                                 "other scenario or --set values; --seeds may change)")
             done = table.read()
     table.start(done)
     spec_path.write_text(json.dumps(spec.to_json(), indent=1) + "\n")
