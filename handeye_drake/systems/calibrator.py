@@ -248,10 +248,14 @@ class HandEyeCalibrator(LeafSystem):
     def _OutputValues(e, mode) -> dict:
         """The outputs' values for estimator ``e`` in ``mode``."""
         nis = e.last_nis if np.isfinite(e.last_nis) else -1.0
-        return {"X_CE_estimate": pose_to_vector(e.X_CE),
-                "X_EC_estimate": pose_to_vector(e.X_EC),
-                "X_EC_std": np.concatenate([e.X_EC_rotation_std_deg, e.X_EC_translation_std]),
-                "X_EC_covariance": e.X_EC_covariance.reshape(36),
+        X_CE = e._X_CE_hat()
+        cov = e.X_EC_covariance  # (once; as X_EC_rotation_std_deg / X_EC_translation_std)
+        variances = np.maximum(np.diag(cov), 0.0)
+        return {"X_CE_estimate": pose_to_vector(X_CE),
+                "X_EC_estimate": pose_to_vector(inverse(X_CE)),
+                "X_EC_std": np.concatenate([np.degrees(np.sqrt(variances[:3])),
+                                            np.sqrt(variances[3:])]),
+                "X_EC_covariance": cov.reshape(36),
                 "status": np.array([mode, e.num_updates, e.num_rejected, nis], dtype=float)}
 
     def _Collect(self, context, discrete_state, sample):
