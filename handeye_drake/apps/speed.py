@@ -702,8 +702,11 @@ def calibrate_section(sizes=CALIBRATE_SIZES, log=print) -> list[dict]:
             if code == 0 and result.is_file():
                 data = json.loads(result.read_text())
                 X = data.get("X_EC")
-                if X is not None:
+                X = X.get("matrix") if isinstance(X, dict) else X  # (the format may evolve)
+                try:
                     row["rotation_error_deg"] = rotation_error_deg(TRUE_X_EC, np.array(X))
+                except (TypeError, ValueError):
+                    pass
             motions = n * (n - 1) // 2
             if cv_reason is not None:
                 row["opencv"] = cv_reason
