@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import multiprocessing
 import os
+import signal
 from concurrent.futures import ProcessPoolExecutor
 
 
@@ -46,6 +48,27 @@ def add_executor_arguments(parser, default_workers: int | None = None,
                         help="start a Dask LocalCluster of N worker processes and run on it")
 
 
+def _ignore_ctrl_c() -> None:
+    """In a worker process: Ctrl-C is the parent's business (it stops the sweep and shuts the
+    workers down), not a traceback per worker."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Processes started inside inherit an ignored SIGINT (Python then installs no
+    KeyboardInterrupt handler in them); this process's own handler is restored after."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @contextlib.contextmanager
 def make_executor(workers: int = 1, scheduler: str | None = None,
                   dask_local: int | None = None):
@@ -66,8 +89,10 @@ def make_executor(workers: int = 1, scheduler: str | None = None,
         cluster = None
         try:
             if dask_local:
-                cluster = LocalCluster(n_workers=int(dask_local), threads_per_worker=1,
-                                       processes=True, dashboard_address=None)
+                with _workers_ignore_ctrl_c():
+                    cluster = LocalCluster(n_workers=int(dask_local), threads_per_worker=1,
+                                           processes=True, dashboard_address=None,
+                                           silence_logs=logging.ERROR)
                 client = Client(cluster)
                 where = f"Dask LocalCluster, {dask_local} worker processes"
             else:
@@ -89,7 +114,8 @@ def make_executor(workers: int = 1, scheduler: str | None = None,
         return
     if workers > 1:
         pool = ProcessPoolExecutor(max_workers=int(workers),
-                                   mp_context=multiprocessing.get_context("spawn"))
+                                   mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_ignore_ctrl_c)
         try:
             yield pool, f"{workers} local worker processes"
         finally:

@@ -362,8 +362,9 @@ def run_sweep(spec: SweepSpec, out, executor=None, resume: bool = False, force: 
     todo = [t for t in spec.tasks() if t[0] not in seen]
     rows = [dict(r) for r in done]
     failed = 0
-    bar = progress_bar(len(todo), f"sweep ({len(done)} done before)" if done else "sweep",
-                       unit="runs", enabled=progress)
+    label = f"sweep ({len(done)} done before" if done else "sweep ("
+    bar = progress_bar(len(todo), f"{label}{', ' if done else ''}0 failed)", unit="runs",
+                       enabled=progress)
     start = time.perf_counter()
     interrupted = False
 
@@ -372,7 +373,7 @@ def run_sweep(spec: SweepSpec, out, executor=None, resume: bool = False, force: 
         table.append(row)
         rows.append({c: _cell(row.get(c)) for c in spec.columns})
         failed += not str(row.get("status", "")).startswith("ok")
-        bar.set_postfix_str(f"failed {failed}, remaining {len(todo) - bar.n - 1}")
+        bar.set_description_str(f"{label}{', ' if done else ''}{failed} failed)", refresh=False)
         bar.update()
 
     try:
