@@ -81,6 +81,7 @@ from ..estimation.solvers import solve_ax_xb
 from ..estimation.startup import two_motion_estimate
 from ..estimation.synthetic import chain_poses, inject_wrong_poses, orbit_poses, paper_motions
 from ..estimation.validation import rotation_defect
+from .executors import add_executor_arguments, make_executor
 from .outputs import check_output_file
 
 PAPER_NOISE_LEVELS = (0.01, 0.05, 0.1)
@@ -460,7 +461,7 @@ def _format_check(c) -> str:
 def run_accuracy_benchmark(runs: int = 20, closed_loop_runs: int = 4, seed: int = 0,
                            workers: int = 2, noise_levels=PAPER_NOISE_LEVELS,
                            settings=SETTINGS, num_motions: int = PAPER_NUM_MOTIONS,
-                           log=print) -> dict:
+                           log=print, executor=None, executor_name: str = "") -> dict:
     """Runs the benchmark and returns the JSON-able report (see the module docstring)."""
     for name, v in (("runs", runs), ("closed_loop_runs", closed_loop_runs),
                     ("workers", workers)):
@@ -493,7 +494,10 @@ def run_accuracy_benchmark(runs: int = 20, closed_loop_runs: int = 4, seed: int 
         tasks += [("large", None, _large_task, ((seed, 4, r), use_cv)) for r in range(runs)]
 
     start = time.perf_counter()
-    if workers > 1 and len(tasks) > 1:
+    if executor is not None:  # any concurrent.futures.Executor (e.g. Dask's)
+        futures = [executor.submit(fn, arg) for _, _, fn, arg in tasks]
+        outputs = [f.result() for f in futures]
+    elif workers > 1 and len(tasks) > 1:
         with ProcessPoolExecutor(max_workers=int(workers)) as pool:
             futures = [pool.submit(fn, arg) for _, _, fn, arg in tasks]
             outputs = [f.result() for f in futures]
@@ -529,7 +533,9 @@ def run_accuracy_benchmark(runs: int = 20, closed_loop_runs: int = 4, seed: int 
                 "0.002 rad / 0.5 mm", "X_EC", out["large"])
 
     report = {"seed": seed, "runs": runs, "closed_loop_runs": closed_loop_runs,
-              "workers": workers, "noise_levels": levels, "opencv": reason or "used",
+              "workers": workers, "executor": executor_name or (
+                  f"{workers} local worker processes" if workers > 1 else "serial"),
+              "noise_levels": levels, "opencv": reason or "used",
               "settings": {}}
     for key, entry in collected.items():
         reference = "ml_inliers" if key.endswith("+outliers") else "ml"
@@ -558,16 +564,20 @@ def format_report(report: dict) -> str:
     if report["targets"]:
         parts.append(f"Targets (ours = {OURS_MOTIONS}, medians):")
         parts += [_format_check(c) for c in report["targets"]]
-    parts.append(f"wall time {report['wall_time_s']:.1f} s ({report['workers']} workers)")
+    parts.append(f"wall time {report['wall_time_s']:.1f} s "
+                 f"({report.get('executor', str(report['workers']) + ' workers')})")
     return "\n".join(parts)
 
 
 def _accuracy(args) -> int:
     json_path = check_output_file(args.json, "--json", args.force) if args.json else None
-    report = run_accuracy_benchmark(
-        runs=args.runs, closed_loop_runs=args.closed_loop_runs, seed=args.seed,
-        workers=args.workers, noise_levels=args.noise_levels, settings=args.settings,
-        num_motions=args.motions)
+    # Dask when asked (--scheduler / --dask-local); else the benchmark's own process pool.
+    with make_executor(1, args.scheduler, args.dask_local) as (executor, where):
+        report = run_accuracy_benchmark(
+            runs=args.runs, closed_loop_runs=args.closed_loop_runs, seed=args.seed,
+            workers=args.workers, noise_levels=args.noise_levels, settings=args.settings,
+            num_motions=args.motions, executor=executor,
+            executor_name=where if executor is not None else "")
     report["command"] = " ".join(["handeye-drake"] + sys.argv[1:])
     print(format_report(report))
     if json_path is not None:
@@ -593,8 +603,7 @@ def add_parser(benchmark_subparsers) -> argparse.ArgumentParser:
     acc.add_argument("--closed-loop-runs", type=int, default=4, metavar="N",
                      help="closed-loop simulations (seeds S, S+1, …; default 4)")
     acc.add_argument("--seed", type=int, default=0, metavar="S", help="base seed (default 0)")
-    acc.add_argument("--workers", type=int, default=2, metavar="W",
-                     help="worker processes (default 2)")
+    add_executor_arguments(acc, default_workers=2)
     acc.add_argument("--noise-levels", type=float, nargs="+", default=list(PAPER_NOISE_LEVELS),
                      help="rotation-coefficient σ of the small-motion settings "
                      "(default 0.01 0.05 0.1)")

@@ -6,7 +6,8 @@ no application imports this module back.
     handeye-drake calibrate   hand-eye calibration from recorded robot and camera poses
     handeye-drake plan        the next robot poses to record (D-optimal design)
     handeye-drake reproduce   the paper's experiments (Figures 2–10)
-    handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit
+    handeye-drake sweep       Monte Carlo runs over settings × seeds (local processes or Dask)
+    handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit; speed
 
 Exit status: 0 success, 1 a result that should not be trusted under ``--strict``, 2 bad input
 (one ``handeye-drake: error: ...`` line, no traceback), 130 interrupted.
@@ -17,11 +18,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import accuracy, calibrate, plan, reproduce, simulate
+from . import accuracy, calibrate, plan, reproduce, simulate, speed, sweep
 
-APPLICATIONS = (simulate, calibrate, plan, reproduce)
+APPLICATIONS = (simulate, calibrate, plan, reproduce, sweep)
 #: Sub-commands of ``handeye-drake benchmark``.
-BENCHMARKS = (accuracy,)
+BENCHMARKS = (accuracy, speed)
 
 
 class _Parser(argparse.ArgumentParser):

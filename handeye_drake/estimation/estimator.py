@@ -22,6 +22,7 @@ the axes of the frame the pose is expressed in) and t = t̂ + δt (m).
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Protocol
 
@@ -146,6 +147,13 @@ class EstimatorBase:
     config: object
     #: Rotation noise (rad per axis) used by the excitation check; set by subclasses.
     _excitation_sigma: float = 1e-3
+
+    def _copy(self):
+        """An independent copy, cheaply: updates assign new arrays to the estimator's attributes
+        and never change an array in place — except the excitation sum, copied here."""
+        other = copy.copy(self)
+        other._excitation = Excitation(self._excitation.S)
+        return other
 
     def _init_counters(self) -> None:
         self._num_updates = 0

@@ -14,13 +14,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
+from scipy.linalg.lapack import dpotrf as _potrf
+from scipy.linalg.lapack import dpotrs as _potrs
 
 from . import defaults
 from .configs import PaperFilter
 from .estimator import EstimatorBase, VectorLayout
 from .linear_model import linear_system_matrices, state_from_transform
-from .manifold import gate_threshold
+from .manifold import _eye, gate_threshold
 from .orthonormalize import orthonormalize_unchecked
 from .se3 import (
     inverse,
@@ -30,7 +31,7 @@ from .se3 import (
     rotation_log,
     vector_to_pose,
 )
-from .validation import as_transform, check_covariance, check_positive
+from .validation import as_transform, check_covariance, check_noisy_rotation, check_positive
 
 #: Values of ``PaperFilter.noise_covariance``.
 NOISE_COVARIANCES = ("diagonal", "exact")
@@ -107,16 +108,22 @@ def kalman_step(x, P, C, y, G1, G2):
     S = 0.5 * (S + S.T)
     PCt = P @ C.T
     r = y - C @ x
-    try:
-        factor = scipy.linalg.cho_factor(S, check_finite=False)
-        K = scipy.linalg.cho_solve(factor, PCt.T, check_finite=False).T
-        nis = float(r @ scipy.linalg.cho_solve(factor, r, check_finite=False))
-    except np.linalg.LinAlgError:
+    # LAPACK's Cholesky called directly: scipy.linalg.cho_factor / cho_solve's arithmetic
+    # without their per-call checks.
+    c, info = _potrf(S, lower=0, overwrite_a=0, clean=0)
+    if info == 0:
+        Kt, info = _potrs(c, PCt.T, lower=0, overwrite_b=0)
+        s, info_r = _potrs(c, r, lower=0, overwrite_b=0)
+        info = info or info_r
+    if info == 0:
+        K = Kt.T
+        nis = float(r @ s)
+    else:
         S_pinv = np.linalg.pinv(S, rcond=1e-12, hermitian=True)
         K = PCt @ S_pinv
         nis = float(r @ S_pinv @ r)
     x_new = x + K @ r
-    I_KC = np.eye(len(x)) - K @ C
+    I_KC = _eye(len(x)) - K @ C
     P_new = I_KC @ P @ I_KC.T + K @ G2 @ K.T + G1
     return x_new, 0.5 * (P_new + P_new.T), nis
 
@@ -135,13 +142,6 @@ def tangent_covariance_of_state(x, P12) -> np.ndarray:
     J[:3, :9] = _AXIAL @ np.kron(np.eye(3), R_hat)  # vec_row(δR R̂ᵀ) = (I3 ⊗ R̂) vec_row(δR)
     J[3:, 9:] = np.eye(3)
     return J @ P12 @ J.T
-
-
-def _check_motion_rotation(R, name: str) -> None:
-    det = float(np.linalg.det(R))
-    if not det > 1e-6:
-        raise ValueError(f"{name}: rotation block is not a (noisy) rotation (det = {det:.3g}; a "
-                         "reflection or a singular matrix)")
 
 
 class HandEyeKalmanFilter(EstimatorBase):
@@ -176,6 +176,9 @@ class HandEyeKalmanFilter(EstimatorBase):
     def _setup(self) -> None:
         c = self.config
         self._G1 = np.diag(c.process_variances) if c.process_variances else np.zeros((12, 12))
+        self._G2_diagonal = np.diag([c.rotation_coefficient_sigma**2] * 9
+                                    + [c.translation_sigma**2] * 3)
+        self._G2_diagonal.flags.writeable = False
         self._gate = min(gate_threshold(c.gate_probability, 12),
                          12 * defaults.GROSS_ERROR_SIGMAS**2)
         self._min_rotation = math.radians(c.min_rotation_deg)
@@ -184,12 +187,12 @@ class HandEyeKalmanFilter(EstimatorBase):
     def measurement_covariance(self, B) -> np.ndarray:
         """G2 this filter uses for a robot motion B at the current estimate."""
         B = as_transform(B, "B", rigid=True)
-        return self._G2(B[:3, :3])
+        return self._G2(B[:3, :3]).copy()
 
     def _G2(self, R_B) -> np.ndarray:
         c = self.config
         if c.noise_covariance == "diagonal":
-            return np.diag([c.rotation_coefficient_sigma**2] * 9 + [c.translation_sigma**2] * 3)
+            return self._G2_diagonal
         X = self._X_CE_hat()
         return _exact_covariance(c.rotation_coefficient_sigma, c.translation_sigma, X[:3, :3],
                                  X[:3, 3], R_B)
@@ -200,7 +203,7 @@ class HandEyeKalmanFilter(EstimatorBase):
         ValueError on bad input, leaving the state as it was."""
         A = as_transform(A, "A", rigid=False)
         B = as_transform(B, "B", rigid=True)
-        _check_motion_rotation(A[:3, :3], "A")
+        check_noisy_rotation(A, "A")
         return self._update_motion(A, B)
 
     def _update_motion(self, A, B) -> bool:
@@ -227,7 +230,7 @@ class HandEyeKalmanFilter(EstimatorBase):
         sample, and samples within ``min_rotation_deg`` of the previous one, are skipped)."""
         X_BE = as_transform(X_BE, "X_BE", rigid=True)
         X_CT = as_transform(X_CT, "X_CT", rigid=False)
-        _check_motion_rotation(X_CT[:3, :3], "X_CT")
+        check_noisy_rotation(X_CT, "X_CT")
         return self._update(X_BE, X_CT)
 
     def _update(self, X_BE, X_CT) -> bool:

@@ -12,6 +12,9 @@ import numpy as np
 
 from .validation import as_transform, as_transform_list, check_same_length
 
+_I3, _I9 = np.eye(3), np.eye(9)
+_I3.flags.writeable = _I9.flags.writeable = False
+
 
 def relative_motions(X_BE_list, X_CT_list, rigid_camera: bool = True):
     """Camera and robot motions between consecutive samples.
@@ -60,9 +63,12 @@ def linear_system_matrices(A: np.ndarray, B: np.ndarray):
     R_A, t_A = A[:3, :3], A[:3, 3]
     R_B, t_B = B[:3, :3], B[:3, 3]
     C = np.zeros((12, 12))
-    C[:9, :9] = np.eye(9) - np.kron(R_A, R_B)
-    C[9:, :9] = np.kron(np.eye(3), t_B[None, :])
-    C[9:, 9:] = np.eye(3) - R_A
+    # I9 − R_A ⊗ R_B (the Kronecker product's entries, without np.kron's overhead)
+    C[:9, :9] = _I9 - (R_A[:, None, :, None] * R_B[None, :, None, :]).reshape(9, 9)
+    C[9, 0:3] = t_B  # I3 ⊗ t_Bᵀ
+    C[10, 3:6] = t_B
+    C[11, 6:9] = t_B
+    C[9:, 9:] = _I3 - R_A
     y = np.zeros(12)
     y[9:] = t_A
     return C, y

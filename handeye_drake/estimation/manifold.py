@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg.lapack import dpotrf as _potrf
+from scipy.linalg.lapack import dpotrs as _potrs
 from scipy.stats import chi2
 
 from . import defaults
@@ -39,15 +41,35 @@ from .se3 import (
     skew,
     vector_to_pose,
 )
-from .validation import as_transform, check_covariance
+from .validation import as_transform, check_covariance, check_noisy_rotation
+
+
+_I3 = np.eye(3)
+_I3.flags.writeable = False
+_EYES = {}
+
+
+def _eye(n: int) -> np.ndarray:
+    """A shared read-only n×n identity (hot paths allocate none)."""
+    I = _EYES.get(n)
+    if I is None:
+        I = _EYES[n] = np.eye(n)
+        I.flags.writeable = False
+    return I
 
 
 def _robust_inverse(S):
-    try:
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(S, check_finite=False),
-                                      np.eye(len(S)), check_finite=False)
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(S, rcond=1e-12, hermitian=True)
+    """S⁻¹ of a symmetric positive definite S through its Cholesky factor; the pseudo-inverse
+    when S is not positive definite. (LAPACK's potrf/potrs called directly: the same arithmetic
+    as ``scipy.linalg.cho_factor``/``cho_solve``, without their per-call checks.)"""
+    c, info = _potrf(S, lower=0, overwrite_a=0, clean=0)
+    if info == 0:
+        x, info = _potrs(c, _eye(len(S)), lower=0, overwrite_b=0)
+        if info == 0:
+            return x
+    if info < 0:  # an illegal argument: not expected for a finite square S
+        raise ValueError(f"innovation covariance: LAPACK rejected argument {-info}")
+    return np.linalg.pinv(S, rcond=1e-12, hermitian=True)
 
 
 @functools.lru_cache(maxsize=64)
@@ -77,13 +99,14 @@ def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.
     z, H = residual(estimate, measurement)
     S_inv = _robust_inverse(H @ P @ H.T + Rn)
     nis = float(z @ S_inv @ z)
-    if not np.isfinite(nis) or nis > min(gate, len(z) * defaults.GROSS_ERROR_SIGMAS**2):
+    if not math.isfinite(nis) or nis > min(gate, len(z) * defaults.GROSS_ERROR_SIGMAS**2):
         return estimate, P, False, nis
     est, delta = estimate, np.zeros(len(P))
     for i in range(iterations):
         K = P @ H.T @ S_inv
         delta_new = K @ (z + H @ delta)
-        step = float(np.linalg.norm(delta_new - delta))
+        d = delta_new - delta
+        step = math.sqrt(float(d @ d))
         delta = delta_new
         est = retract(estimate, delta)
         if i + 1 == iterations or step < 1e-9:
@@ -91,7 +114,7 @@ def error_state_update(estimate, P, measurement, residual, retract, Rn, gate=np.
         z, H = residual(est, measurement)
         S_inv = _robust_inverse(H @ P @ H.T + Rn)
     K = P @ H.T @ S_inv
-    I_KH = np.eye(len(P)) - K @ H
+    I_KH = _eye(len(P)) - K @ H
     P_new = I_KH @ P @ I_KH.T + K @ Rn @ K.T
     return est, 0.5 * (P_new + P_new.T), True, nis
 
@@ -158,12 +181,15 @@ def motion_residual(X_CE, measurement):
     R, t = X_CE[:3, :3], X_CE[:3, 3]
     R_A = R @ R_B @ R.T
     t_A = R @ t_B + t - R_A @ t
-    z = np.concatenate([rotation_log(R_Am @ R_A.T), t_Am - t_A])
-    I = np.eye(3)
-    H = np.zeros((6, 6))
-    H[:3, :3] = I - R_A
-    H[3:, :3] = -skew(R @ t_B) + skew(R_A @ t) @ (I - R_A)
-    H[3:, 3:] = I - R_A
+    z = np.empty(6)
+    z[:3] = rotation_log(R_Am @ R_A.T)
+    z[3:] = t_Am - t_A
+    I_RA = _I3 - R_A
+    H = np.empty((6, 6))
+    H[:3, :3] = I_RA
+    H[:3, 3:] = 0.0
+    H[3:, :3] = -skew(R @ t_B) + skew(R_A @ t) @ I_RA
+    H[3:, 3:] = I_RA
     return z, H
 
 
@@ -177,13 +203,16 @@ def pose_residual(estimate, measurement):
     u = R_EB @ X_BT[:3, 3] + t_EB  # target origin in E
     R_CT = R_CE @ R_EB @ X_BT[:3, :3]
     t_CT = R_CE @ u + t_CE
-    z = np.concatenate([rotation_log(R_CTm @ R_CT.T), t_CTm - t_CT])
+    z = np.empty(6)
+    z[:3] = rotation_log(R_CTm @ R_CT.T)
+    z[3:] = t_CTm - t_CT
+    R_CB = R_CE @ R_EB
     H = np.zeros((6, 12))
-    H[:3, :3] = np.eye(3)
-    H[:3, 6:9] = R_CE @ R_EB
+    H[:3, :3] = _I3
+    H[:3, 6:9] = R_CB
     H[3:, :3] = -skew(R_CE @ u)
-    H[3:, 3:6] = np.eye(3)
-    H[3:, 9:12] = R_CE @ R_EB
+    H[3:, 3:6] = _I3
+    H[3:, 9:12] = R_CB
     return z, H
 
 
@@ -199,17 +228,14 @@ def _noise_covariance(rotation_sigma: float, translation_sigma: float) -> np.nda
 def _measured_rotation(R, name: str) -> np.ndarray:
     """The nearest rotation of a measured (possibly non-orthonormal) rotation block; refuses
     blocks that are no noisy rotation at all (singular, or a reflection)."""
-    det = float(np.linalg.det(R))
-    if not det > 1e-6:
-        raise ValueError(f"{name}: rotation block is not a (noisy) rotation (det = {det:.3g}; a "
-                         "reflection or a singular matrix — a flipped axis in the data?)")
+    check_noisy_rotation(R, name)
     return orthonormalize_unchecked(R, "svd")
 
 
 def _check_sample(X_BE, X_CT) -> tuple[np.ndarray, np.ndarray]:
     X_BE = as_transform(X_BE, "X_BE", rigid=True)
     X_CT = as_transform(X_CT, "X_CT", rigid=False)
-    _measured_rotation(X_CT[:3, :3], "X_CT")
+    check_noisy_rotation(X_CT, "X_CT")  # (its projection onto SO(3) is the update's)
     return X_BE, X_CT
 
 

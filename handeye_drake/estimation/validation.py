@@ -43,7 +43,8 @@ def check_rotation(R, name: str, tol: float = ROTATION_TOLERANCE) -> np.ndarray:
 
 
 def as_transform(X, name: str, rigid: bool = True, tol: float = ROTATION_TOLERANCE) -> np.ndarray:
-    """Returns a pose as a 4×4 homogeneous numpy array.
+    """Returns a pose as a 4×4 homogeneous numpy array (a new array: later changes of the
+    caller's ``X`` do not reach it).
 
     Accepts a 4×4 array-like or a ``pydrake.math.RigidTransform``. The last row must be
     [0, 0, 0, 1]. With ``rigid=True`` the 3×3 block must be a proper rotation within ``tol``;
@@ -52,6 +53,50 @@ def as_transform(X, name: str, rigid: bool = True, tol: float = ROTATION_TOLERAN
     """
     if hasattr(X, "GetAsMatrix4"):
         X = X.GetAsMatrix4()
+    # Fast path for what nearly every caller passes (a float 4×4 array): one copy, then the
+    # checks on Python floats; anything unusual takes the detailed path, which says what is wrong.
+    if type(X) is np.ndarray and X.shape == (4, 4):
+        try:
+            M = np.array(X, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            M = None
+        if M is not None and _plausible_transform(M.tolist(), rigid, tol):
+            return M
+    return _as_transform_checked(X, name, rigid, tol)
+
+
+def _plausible_transform(m: list, rigid: bool, tol: float) -> bool:
+    """True when the 4×4 nested list passes every check of ``as_transform`` (no message)."""
+    r0, r1, r2, r3 = m
+    if r3 != [0.0, 0.0, 0.0, 1.0] and not (
+            abs(r3[0]) <= 1e-9 and abs(r3[1]) <= 1e-9 and abs(r3[2]) <= 1e-9
+            and abs(r3[3] - 1.0) <= 1e-9):
+        return False
+    for row in (r0, r1, r2):
+        for v in row:  # also false for NaN
+            if not abs(v) <= MAX_POSE_MAGNITUDE:
+                return False
+    a, b, c = r0[0], r0[1], r0[2]
+    d, e, f = r1[0], r1[1], r1[2]
+    g, h, i = r2[0], r2[1], r2[2]
+    if not rigid:
+        return max(abs(a), abs(b), abs(c), abs(d), abs(e), abs(f), abs(g), abs(h),
+                   abs(i)) <= 10.0
+    # max(‖RᵀR − I‖_F, |det R − 1|) ≤ tol, as rotation_defect.
+    g00 = a * a + d * d + g * g - 1.0
+    g11 = b * b + e * e + h * h - 1.0
+    g22 = c * c + f * f + i * i - 1.0
+    g01 = a * b + d * e + g * h
+    g02 = a * c + d * f + g * i
+    g12 = b * c + e * f + h * i
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    # A margin keeps a matrix at the tolerance's edge on the detailed path (same verdict as
+    # rotation_defect's own arithmetic).
+    return frob2 <= (0.999 * tol) ** 2 and abs(det - 1.0) <= 0.999 * tol
+
+
+def _as_transform_checked(X, name: str, rigid: bool, tol: float) -> np.ndarray:
     M = as_matrix(X, name, (4, 4))
     big = float(np.abs(M).max())
     if big > MAX_POSE_MAGNITUDE:
@@ -66,6 +111,16 @@ def as_transform(X, name: str, rigid: bool = True, tol: float = ROTATION_TOLERAN
     if rigid:
         check_rotation(M[:3, :3], f"{name} (rotation block)", tol)
     return M
+
+
+def check_noisy_rotation(M, name: str) -> None:
+    """Refuses the 3×3 rotation block of a validated transform ``M`` (4×4 or 3×3) when it is no
+    noisy rotation at all: det ≤ 1e-6 (singular, or a reflection)."""
+    (a, b, c), (d, e, f), (g, h, i) = (row[:3] for row in M[:3].tolist())
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if not det > 1e-6:
+        raise ValueError(f"{name}: rotation block is not a (noisy) rotation (det = {det:.3g}; a "
+                         "reflection or a singular matrix — a flipped axis in the data?)")
 
 
 def as_transform_list(Xs, name: str, rigid: bool = True, min_length: int = 0) -> list[np.ndarray]:

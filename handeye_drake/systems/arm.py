@@ -217,7 +217,7 @@ class DifferentialIkDriver(LeafSystem):
       - ``status`` (1): last DifferentialInverseKinematicsStatus as a float: 0 kSolutionFound,
         1 kNoSolutionFound, 2 kStuck.
     Discrete state: group 0 = [q_cmd; v_cmd] (2n, joint order of the control plant), group 1 =
-    [status].
+    [status], group 2 = the desired_state output (actuator order).
     """
 
     def __init__(self, control_plant: MultibodyPlant, ee_frame_name: str, time_step: float, q0,
@@ -257,17 +257,20 @@ class DifferentialIkDriver(LeafSystem):
              velocity_scale * control_plant.GetVelocityUpperLimits()))
         self._params = params
         self._plant_context = control_plant.CreateDefaultContext()
+        control_plant.SetVelocities(self._plant_context, np.zeros(n))
+        self._world_frame = control_plant.world_frame()
 
         self._V_port = self.DeclareVectorInputPort("V_WE_E_command", 6)
         self._cmd_index = self.DeclareDiscreteState(np.concatenate([q0, np.zeros(n)]))
         self._status_index = self.DeclareDiscreteState(np.array([_STATUS_SOLUTION_FOUND]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._UpdateCommand)
-        self._desired_state_port = self.DeclareVectorOutputPort(
-            "desired_state", 2 * n, self._CalcDesiredState,
-            prerequisites_of_calc={self.discrete_state_ticket(self._cmd_index)})
-        self._status_port = self.DeclareVectorOutputPort(
-            "status", 1, self._CalcStatus,
-            prerequisites_of_calc={self.discrete_state_ticket(self._status_index)})
+        # The set points in actuator order, kept as state too: the plant reads them at each of
+        # its steps without calling Python.
+        self._desired_index = self.DeclareDiscreteState(
+            self._ActuatorOrder(np.concatenate([q0, np.zeros(n)])))
+        self._desired_state_port = self.DeclareStateOutputPort("desired_state",
+                                                               self._desired_index)
+        self._status_port = self.DeclareStateOutputPort("status", self._status_index)
 
     def _check_q(self, q, name: str) -> np.ndarray:
         q = as_matrix(q, name, (self._n,))
@@ -295,7 +298,9 @@ class DifferentialIkDriver(LeafSystem):
         """Sets q_cmd = q (rad, control-plant joint order), v_cmd = 0, status = solution found,
         in this system's ``context``. Set the simulated plant to the same q to start at rest."""
         q = self._check_q(q, "q")
-        context.SetDiscreteState(self._cmd_index, np.concatenate([q, np.zeros(self._n)]))
+        x = np.concatenate([q, np.zeros(self._n)])
+        context.SetDiscreteState(self._cmd_index, x)
+        context.SetDiscreteState(self._desired_index, self._ActuatorOrder(x))
         context.SetDiscreteState(self._status_index, np.array([_STATUS_SOLUTION_FOUND]))
 
     def _UpdateCommand(self, context, discrete_state) -> None:
@@ -304,34 +309,32 @@ class DifferentialIkDriver(LeafSystem):
         V_WE_E = self._V_port.Eval(context)
         v = np.zeros(n)
         status = _STATUS_NO_SOLUTION
-        if np.all(np.isfinite(V_WE_E)):
+        if np.isfinite(V_WE_E).all():
+            # (The private context's velocities stay zero: set once, in the constructor.)
             self._plant.SetPositions(self._plant_context, q)
-            self._plant.SetVelocities(self._plant_context, np.zeros(n))
             # DoDifferentialInverseKinematics takes V_WE expressed in W (about E's origin): only a
             # rotation, no change of reference point.
             R_WE = self._plant.CalcRelativeRotationMatrix(
-                self._plant_context, self._plant.world_frame(), self._frame_E).matrix()
+                self._plant_context, self._world_frame, self._frame_E).matrix()
             V_WE_W = np.concatenate([R_WE @ V_WE_E[:3], R_WE @ V_WE_E[3:]])
             result = DoDifferentialInverseKinematics(
                 self._plant, self._plant_context, V_WE_W, self._frame_E, self._params)
             status = float(int(result.status))
             if (result.joint_velocities is not None and status != _STATUS_NO_SOLUTION
-                    and np.all(np.isfinite(result.joint_velocities))):
+                    and np.isfinite(result.joint_velocities).all()):
                 v = np.asarray(result.joint_velocities, dtype=float).reshape(n)
             else:
                 status = _STATUS_NO_SOLUTION
         q_next = np.clip(q + self._dt * v, self._q_lower, self._q_upper)
-        discrete_state.set_value(self._cmd_index, np.concatenate([q_next, v]))
+        x = np.concatenate([q_next, v])
+        discrete_state.set_value(self._cmd_index, x)
+        discrete_state.set_value(self._desired_index, self._ActuatorOrder(x))
         discrete_state.set_value(self._status_index, np.array([status]))
 
-    def _CalcDesiredState(self, context, output) -> None:
-        x = context.get_discrete_state(self._cmd_index).get_value()
+    def _ActuatorOrder(self, x) -> np.ndarray:
+        """[q_cmd; v_cmd] (joint order) → the desired-state port's actuator order."""
         n = self._n
-        output.SetFromVector(np.concatenate(
-            [x[:n][self._q_of_actuator], x[n:][self._v_of_actuator]]))
-
-    def _CalcStatus(self, context, output) -> None:
-        output.SetFromVector(context.get_discrete_state(self._status_index).get_value())
+        return np.concatenate([x[:n][self._q_of_actuator], x[n:][self._v_of_actuator]])
 
 
 class EndEffectorPoseSensor(LeafSystem):
@@ -373,15 +376,17 @@ class EndEffectorPoseSensor(LeafSystem):
     def get_X_BE_output_port(self):
         return self._X_BE_port
 
-    def _frame_pose(self, context, frame) -> np.ndarray:
+    @staticmethod
+    def _frame_pose(poses, frame) -> np.ndarray:
         body_index, X_BodyF = frame
-        X_WBody = self._body_poses_port.Eval(context)[body_index].GetAsMatrix4()
-        return X_WBody @ X_BodyF
+        return poses[body_index].GetAsMatrix4() @ X_BodyF
 
     def _CalcX_WE(self, context, output) -> None:
-        output.SetFromVector(pose_to_vector(self._frame_pose(context, self._E)))
+        poses = self._body_poses_port.Eval(context)
+        output.SetFromVector(pose_to_vector(self._frame_pose(poses, self._E)))
 
     def _CalcX_BE(self, context, output) -> None:
-        X_WB = self._frame_pose(context, self._B)
-        X_WE = self._frame_pose(context, self._E)
+        poses = self._body_poses_port.Eval(context)  # (one conversion of the list to Python)
+        X_WB = self._frame_pose(poses, self._B)
+        X_WE = self._frame_pose(poses, self._E)
         output.SetFromVector(pose_to_vector(inverse(X_WB) @ X_WE))

@@ -26,8 +26,7 @@ sample.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
+from pydrake.systems.framework import LeafSystem
 
 from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
 from ..estimation.solvers import METHODS as SOLVER_METHODS
@@ -66,8 +65,9 @@ class HandEyeCalibrator(LeafSystem):
         X_EC_covariance (36): row-major 6×6 covariance of X_EC's error [δθ (rad); δt (m)].
         status (4): [STATUS_*, accepted updates, rejected measurements, last NIS (−1 if none)].
 
-    Discrete state: the estimator's vector (``estimator_vector``), the mode, the key frames, the
-    buffer of self-calibration samples, the two-motion solution.
+    Discrete state: the estimator's vector, the mode, the key frames, the buffer of
+    self-calibration samples, and one group per output (computed when the estimate changes, so
+    reading an output runs no Python).
     """
 
     def __init__(self, period: float, X_CE_initial_guess, estimator,
@@ -112,38 +112,27 @@ class HandEyeCalibrator(LeafSystem):
         self._valid_port = self.DeclareVectorInputPort("X_CT_valid", 1)
         self._covariance_in_port = self.DeclareVectorInputPort("X_CT_covariance", 36)
 
-        initial = self._kind(self._config, X0).to_vector()
-        self._estimator_index = self.DeclareDiscreteState(initial)
+        initial = self._kind(self._config, X0)
+        self._memo = (None, None)  # (state bytes, estimator): see _Estimator
+        self._estimator_index = self.DeclareDiscreteState(initial.to_vector())
         self._mode_index = self.DeclareDiscreteState([STATUS_COLLECTING])
         self._keys_index = self.DeclareDiscreteState((self._M + 1) * _SAMPLE)
         self._num_keys_index = self.DeclareDiscreteState(1)
         self._buffer_index = self.DeclareDiscreteState(max(1, self._capacity * _SAMPLE))
         self._num_buffered_index = self.DeclareDiscreteState(1)
-        self._two_motion_index = self.DeclareDiscreteState(pose_to_vector(X0))
+        # The outputs are computed when the estimate changes and held as discrete state: reading
+        # them (the servo, loggers) costs no Python.
+        values = self._OutputValues(initial, STATUS_COLLECTING)
+        self._output_indices = {name: self.DeclareDiscreteState(v) for name, v in values.items()}
+        self._output_indices["X_EC_two_motion"] = self.DeclareDiscreteState(
+            pose_to_vector(inverse(X0)))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, self._offset, self._UpdateEstimate)
 
-        estimate = {self.discrete_state_ticket(self._estimator_index)}
-        # The estimator object decoded from the state once per state change, shared by the
-        # outputs.
-        self._estimator_cache = self.DeclareCacheEntry(
-            description="estimator", value_producer=ValueProducer(
-                allocate=lambda: AbstractValue.Make(object()), calc=self._CalcEstimator),
-            prerequisites_of_calc=estimate)
-        estimate = {self._estimator_cache.ticket()}
-        self._X_CE_port = self.DeclareVectorOutputPort(
-            "X_CE_estimate", 12, self._CalcX_CE, prerequisites_of_calc=estimate)
-        self._X_EC_port = self.DeclareVectorOutputPort(
-            "X_EC_estimate", 12, self._CalcX_EC, prerequisites_of_calc=estimate)
-        self._two_motion_port = self.DeclareVectorOutputPort(
-            "X_EC_two_motion", 12, self._CalcTwoMotion,
-            prerequisites_of_calc={self.discrete_state_ticket(self._two_motion_index)})
-        self._std_port = self.DeclareVectorOutputPort(
-            "X_EC_std", 6, self._CalcStd, prerequisites_of_calc=estimate)
-        self._covariance_port = self.DeclareVectorOutputPort(
-            "X_EC_covariance", 36, self._CalcCovariance, prerequisites_of_calc=estimate)
-        self._status_port = self.DeclareVectorOutputPort(
-            "status", 4, self._CalcStatus,
-            prerequisites_of_calc=estimate | {self.discrete_state_ticket(self._mode_index)})
+        self._X_CE_port, self._X_EC_port, self._std_port, self._covariance_port, \
+            self._status_port, self._two_motion_port = (
+                self.DeclareStateOutputPort(name, self._output_indices[name])
+                for name in ("X_CE_estimate", "X_EC_estimate", "X_EC_std", "X_EC_covariance",
+                             "status", "X_EC_two_motion"))
 
     # Ports, as members so users can wire them by handle.
     def get_X_BE_input_port(self):
@@ -190,14 +179,39 @@ class HandEyeCalibrator(LeafSystem):
 
     def estimator(self, context):
         """The estimator object held in ``context`` (a copy: changing it changes nothing)."""
-        return self._Estimator(context)
+        return self._Estimator(context)._copy()
+
+    def SetEstimator(self, context, estimator, X_CE_two_motion=None) -> None:
+        """Puts this system in ``context`` (its own context) in the filtering mode with the given
+        estimator's state — e.g. to resume from an earlier calibration, skipping the
+        self-calibration motions. ``estimator``: of this system's estimator type and settings
+        (``estimator_config``). ``X_CE_two_motion``: what the ``X_EC_two_motion`` output reports
+        (default: the estimator's current X_CE)."""
+        if type(estimator) is not self._kind or estimator.config != self._config:
+            raise ValueError(f"estimator: expected a {self._kind.__name__} with this system's "
+                             f"settings {self._config!r}, got {type(estimator).__name__}")
+        X_CE = (estimator.X_CE if X_CE_two_motion is None
+                else as_transform(X_CE_two_motion, "X_CE_two_motion"))
+        context.SetDiscreteState(self._estimator_index, estimator.to_vector())
+        context.SetDiscreteState(self._mode_index, [STATUS_FILTERING])
+        for name, v in self._OutputValues(estimator, STATUS_FILTERING).items():
+            context.SetDiscreteState(self._output_indices[name], v)
+        context.SetDiscreteState(self._output_indices["X_EC_two_motion"],
+                                 pose_to_vector(inverse(X_CE)))
 
     def _Estimator(self, context):
-        return self._kind.from_vector(
-            self._config, context.get_discrete_state(self._estimator_index).get_value())
-
-    def _CalcEstimator(self, context, value):
-        value.set_value(self._Estimator(context))
+        """The estimator of the state in ``context``, decoded once per distinct state: the
+        object is shared (by the outputs' cache, by the next update) and must not be changed —
+        ``_UpdateEstimate`` updates a ``_copy()``. Keyed by the state's bytes, so any context
+        holding the same state gets an equal estimator (``from_vector`` is an exact inverse of
+        ``to_vector``)."""
+        v = context.get_discrete_state(self._estimator_index).get_value()
+        key = v.tobytes()
+        memo_key, memo = self._memo
+        if key != memo_key:
+            memo = self._kind.from_vector(self._config, v)
+            self._memo = (key, memo)
+        return memo
 
     # --------------------------------------------------------------------------- the update
     def _UpdateEstimate(self, context, discrete_state):
@@ -205,7 +219,7 @@ class HandEyeCalibrator(LeafSystem):
             return  # no measurement at this instant (e.g. the target was not detected)
         X_BE_vec = self._X_BE_port.Eval(context)
         X_CT_vec = self._X_CT_port.Eval(context)
-        if not (np.all(np.isfinite(X_BE_vec)) and np.all(np.isfinite(X_CT_vec))):
+        if not (np.isfinite(X_BE_vec).all() and np.isfinite(X_CT_vec).all()):
             raise ValueError(f"HandEyeCalibrator at t={context.get_time():.4f}: non-finite pose "
                              "on the X_BE or X_CT_measured input")
         X_BE, X_CT = vector_to_pose(X_BE_vec), vector_to_pose(X_CT_vec)
@@ -213,7 +227,7 @@ class HandEyeCalibrator(LeafSystem):
         if mode == STATUS_COLLECTING:
             self._Collect(context, discrete_state, np.concatenate([X_BE_vec, X_CT_vec]))
             return
-        estimator = self._Estimator(context)
+        estimator = self._Estimator(context)._copy()
         covariance = None
         if self._covariance_in_port.HasValue(context):
             covariance = self._covariance_in_port.Eval(context).reshape(6, 6)
@@ -221,7 +235,28 @@ class HandEyeCalibrator(LeafSystem):
             estimator._update(X_BE, X_CT)
         else:
             estimator._update(X_BE, X_CT, covariance)
-        discrete_state.set_value(self._estimator_index, estimator.to_vector())
+        self._SetEstimatorState(discrete_state, estimator, mode)
+
+    def _SetEstimatorState(self, discrete_state, estimator, mode) -> None:
+        v = estimator.to_vector()
+        discrete_state.set_value(self._estimator_index, v)
+        self._memo = (v.tobytes(), estimator)  # the next step's state: no decoding then
+        for name, value in self._OutputValues(estimator, mode).items():
+            discrete_state.set_value(self._output_indices[name], value)
+
+    @staticmethod
+    def _OutputValues(e, mode) -> dict:
+        """The outputs' values for estimator ``e`` in ``mode``."""
+        nis = e.last_nis if np.isfinite(e.last_nis) else -1.0
+        X_CE = e._X_CE_hat()
+        cov = e.X_EC_covariance  # (once; as X_EC_rotation_std_deg / X_EC_translation_std)
+        variances = np.maximum(np.diag(cov), 0.0)
+        return {"X_CE_estimate": pose_to_vector(X_CE),
+                "X_EC_estimate": pose_to_vector(inverse(X_CE)),
+                "X_EC_std": np.concatenate([np.degrees(np.sqrt(variances[:3])),
+                                            np.sqrt(variances[3:])]),
+                "X_EC_covariance": cov.reshape(36),
+                "status": np.array([mode, e.num_updates, e.num_rejected, nis], dtype=float)}
 
     def _Collect(self, context, discrete_state, sample):
         phase = float(self._phase_port.Eval(context)[0])
@@ -262,30 +297,7 @@ class HandEyeCalibrator(LeafSystem):
         if not (sample_buffered and start.used_samples):
             # This sample was not part of the start-up: it is the first on-line one.
             estimator._update(*(vector_to_pose(v) for v in sample.reshape(2, 12)))
-        discrete_state.set_value(self._estimator_index, estimator.to_vector())
-        discrete_state.set_value(self._two_motion_index, pose_to_vector(X_CE0))
+        self._SetEstimatorState(discrete_state, estimator, mode)
+        discrete_state.set_value(self._output_indices["X_EC_two_motion"],
+                                 pose_to_vector(inverse(X_CE0)))
         discrete_state.set_value(self._mode_index, [mode])
-
-    # ------------------------------------------------------------------------------ outputs
-    def _CalcX_CE(self, context, output: BasicVector):
-        output.SetFromVector(pose_to_vector(self._estimator_cache.Eval(context).X_CE))
-
-    def _CalcX_EC(self, context, output: BasicVector):
-        output.SetFromVector(pose_to_vector(self._estimator_cache.Eval(context).X_EC))
-
-    def _CalcTwoMotion(self, context, output: BasicVector):
-        X_CE = vector_to_pose(context.get_discrete_state(self._two_motion_index).get_value())
-        output.SetFromVector(pose_to_vector(inverse(X_CE)))
-
-    def _CalcStd(self, context, output: BasicVector):
-        e = self._estimator_cache.Eval(context)
-        output.SetFromVector(np.concatenate([e.X_EC_rotation_std_deg, e.X_EC_translation_std]))
-
-    def _CalcCovariance(self, context, output: BasicVector):
-        output.SetFromVector(self._estimator_cache.Eval(context).X_EC_covariance.reshape(36))
-
-    def _CalcStatus(self, context, output: BasicVector):
-        e = self._estimator_cache.Eval(context)
-        mode = context.get_discrete_state(self._mode_index).get_value()[0]
-        nis = e.last_nis if np.isfinite(e.last_nis) else -1.0
-        output.SetFromVector([mode, e.num_updates, e.num_rejected, nis])

@@ -10,7 +10,7 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from ..estimation.se3 import inverse, pose_to_vector, rotation_exp, vector_to_pose
 from ..estimation.validation import (
     ROTATION_TOLERANCE,
     as_matrix,
@@ -22,9 +22,7 @@ from ..vision.camera_model import (
     MIN_DEPTH,
     POSE_NOISE_MODELS,
     CameraIntrinsics,
-    apply_pose_noise,
     as_points,
-    project_points,
     target_visibility,
 )
 
@@ -84,6 +82,8 @@ class HandEyeCamera(LeafSystem):
         self._translation_sigma = check_positive(translation_sigma, "translation_sigma",
                                                  allow_zero=True)
         n = self._p_TQ.shape[0]
+        self._K2 = intrinsics.K[:2, :2]
+        self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
 
         self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
         self._pixel_noise_port = self.DeclareVectorInputPort(
@@ -171,39 +171,73 @@ class HandEyeCamera(LeafSystem):
         return in_image
 
     def _UpdateImage(self, context, discrete_state):
+        # The per-sample path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
+        # the settings checked once in the constructor (tests check it equals them exactly).
         x = self._X_WE_port.Eval(context)
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
                              f"values at t = {context.get_time()}")
         X_WE = vector_to_pose(x)
-        if rotation_defect(X_WE[:3, :3]) > ROTATION_TOLERANCE:
+        if not _is_rotation(x):
             raise ValueError(f"X_WE input of {self.get_name()!r}: rotation block is not a "
                              f"rotation matrix at t = {context.get_time()}: {x[:9].tolist()}")
         X_WC = X_WE @ self._X_EC
         X_CT = inverse(X_WC) @ self._X_WT
         p_CQ = self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3]
-        uv, in_front, in_image = project_points(p_CQ, self._intrinsics, MIN_DEPTH)
+        uv, in_image = self._project(p_CQ)
 
         if self._pixel_sigma > 0:
             noise = self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
             uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
         if self._rotation_sigma > 0 or self._translation_sigma > 0:
             noise = self._EvalNoise(self._pose_noise_port, context, 12)
-            X_CT_measured = apply_pose_noise(X_CT, noise, self._pose_noise_model,
-                                             self._rotation_sigma, self._translation_sigma)
+            X_CT_measured = X_CT.copy()
+            if self._pose_noise_model == "paper":
+                X_CT_measured[:3, :3] = X_CT[:3, :3] + self._rotation_sigma * noise[:9].reshape(3, 3)
+            else:
+                X_CT_measured[:3, :3] = rotation_exp(self._rotation_sigma * noise[:3]) \
+                    @ X_CT[:3, :3]
+            X_CT_measured[:3, 3] = X_CT[:3, 3] + self._translation_sigma * noise[9:12]
         else:
             X_CT_measured = X_CT
 
-        discrete_state.get_mutable_vector(self._features_index).SetFromVector(uv.reshape(-1))
-        discrete_state.get_mutable_vector(self._visible_index).SetFromVector(
-            in_image.astype(float))
-        discrete_state.get_mutable_vector(self._X_CT_index).SetFromVector(
-            pose_to_vector(X_CT_measured))
-        discrete_state.get_mutable_vector(self._X_WC_index).SetFromVector(pose_to_vector(X_WC))
+        discrete_state.set_value(self._features_index, uv.reshape(-1))
+        discrete_state.set_value(self._visible_index, in_image.astype(float))
+        discrete_state.set_value(self._X_CT_index, pose_to_vector(X_CT_measured))
+        discrete_state.set_value(self._X_WC_index, pose_to_vector(X_WC))
+
+    def _project(self, p_CQ):
+        """``project_points(p_CQ, intrinsics, MIN_DEPTH)`` without its checks: (uv, in_image)."""
+        Z = p_CQ[:, 2]
+        in_front = Z > MIN_DEPTH
+        uv = np.zeros((p_CQ.shape[0], 2))
+        if in_front.any():
+            xy = p_CQ[in_front, :2] / Z[in_front, None]
+            uv[in_front] = xy @ self._K2.T + self._principal_point
+        in_image = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] < self._intrinsics.width)
+                    & (uv[:, 1] >= 0) & (uv[:, 1] < self._intrinsics.height))
+        return uv, in_image
 
     def _EvalNoise(self, port, context, size):
         if not port.HasValue(context):
             raise ValueError(
                 f"{port.get_name()} input of {self.get_name()!r} is not connected but its sigma "
                 f"is non-zero; connect a RandomSource (e.g. AddRandomInputs(period, builder))")
-        return as_matrix(port.Eval(context), f"{port.get_name()} input", (size,))
+        noise = port.Eval(context)
+        if not np.isfinite(noise).all():
+            return as_matrix(noise, f"{port.get_name()} input", (size,))  # raises, naming it
+        return noise
+
+
+def _is_rotation(x) -> bool:
+    """``rotation_defect(R) ≤ ROTATION_TOLERANCE`` for R = the first 9 entries of a pose
+    vector (row-major), on Python floats."""
+    a, b, c, d, e, f, g, h, i = x[:9].tolist()
+    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
+        c * c + f * f + i * i - 1.0
+    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if frob2 <= (0.999 * ROTATION_TOLERANCE) ** 2 and abs(det - 1.0) <= 0.999 * ROTATION_TOLERANCE:
+        return True
+    return rotation_defect(np.reshape(x[:9], (3, 3))) <= ROTATION_TOLERANCE

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import vector_to_pose
+from ..estimation.se3 import twist_transform, vector_to_pose
 from ..estimation.validation import as_matrix, check_positive, rotation_defect
 from ..vision.camera_model import (
     MIN_DEPTH,
@@ -19,8 +19,6 @@ from ..vision.camera_model import (
     SelfCalibrationMotion,
     as_points,
     default_self_calibration_motions,
-    ibvs_twist,
-    saturate_twist,
 )
 
 __all__ = [
@@ -99,6 +97,9 @@ class VisualServoController(LeafSystem):
                                   if np.size(desired_features) == 2 * n else desired_features,
                                   "desired_features", (2 * n,))
         self._gain = check_positive(gain, "gain")
+        self._desired_uv = self._desired.reshape(n, 2)
+        self._K2 = intrinsics.K[:2, :2]
+        self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
         self._period = check_positive(period, "period")
         self._max_w = self._check_speed_limit(max_angular_speed, "max_angular_speed")
         self._max_v = self._check_speed_limit(max_linear_speed, "max_linear_speed")
@@ -232,15 +233,34 @@ class VisualServoController(LeafSystem):
             if rotation_defect(X_CE[:3, :3]) > ESTIMATE_ROTATION_TOLERANCE:
                 status = STATUS_INVALID_ESTIMATE
             else:
-                command = saturate_twist(
-                    ibvs_twist(features.reshape(n, 2), self._desired.reshape(n, 2), Z,
-                               self._intrinsics, X_CE, self._gain, visible=usable),
-                    self._max_w, self._max_v)
+                command = self._ServoTwist(features.reshape(n, 2), Z, X_CE, usable)
 
         discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
         discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
         discrete_state.get_mutable_vector(self._error_index).SetFromVector([feature_error])
         discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
+
+    def _ServoTwist(self, uv, Z, X_CE, usable) -> np.ndarray:
+        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` without
+        the per-call checks of its arguments (checked once, in the constructor, or just above):
+        the same arithmetic, step by step (tests check they are equal)."""
+        uv_m = uv[usable]
+        xy = np.linalg.solve(self._K2, (uv_m - self._principal_point).T).T
+        L = np.empty((2 * len(uv_m), 6))
+        for i, ((x, y), z) in enumerate(zip(xy.tolist(), Z[usable].tolist())):
+            L[2 * i:2 * i + 2] = self._K2 @ np.array([
+                [x * y, -(1.0 + x * x), y, -1.0 / z, 0.0, x / z],
+                [1.0 + y * y, -x * y, -x, 0.0, -1.0 / z, y / z]])
+        L = L @ twist_transform(X_CE)
+        error = (uv_m - self._desired_uv[usable]).reshape(-1)
+        V = -self._gain * (np.linalg.pinv(L, rcond=1e-10) @ error)
+        scale = 1.0
+        w, v = np.linalg.norm(V[:3]), np.linalg.norm(V[3:])
+        if w > self._max_w:
+            scale = min(scale, self._max_w / w)
+        if v > self._max_v:
+            scale = min(scale, self._max_v / v)
+        return scale * V
 
     def _EvalFinite(self, port, context):
         value = np.array(port.Eval(context), dtype=float)

@@ -12,7 +12,7 @@ from handeye_drake import (
     translation_error_rel,
 )
 from handeye_drake.estimation.linear_model import state_from_transform
-from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log
 from tests.fixtures import motion_pairs, random_pose, simulate_poses
 
 
@@ -150,3 +150,30 @@ def test_core_import_does_not_load_drake():
     code = ("import sys, handeye_drake; handeye_drake.HandEyeKalmanFilter; "
             "assert not any(m.startswith('pydrake') for m in sys.modules), 'pydrake loaded'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_rotation_exp_log_match_scipy_near_zero_and_pi(rng):
+    """The 3×3 formulas of se3 against scipy's Rotation to 1e-12, including θ → 0 and θ → π
+    (and the projection of a slightly non-orthonormal matrix, which goes through scipy)."""
+    from scipy.spatial.transform import Rotation
+    from handeye_drake.estimation.se3 import rotation_angle
+    angles = [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-4, 9.99e-4, 1e-3, 1.001e-3, 0.1, 1.0, 2.0, 3.0,
+              np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9, np.pi - 1e-12, np.pi]
+    for angle in angles:
+        for _ in range(20):
+            axis = rng.normal(size=3)
+            w = angle * axis / np.linalg.norm(axis)
+            R = rotation_exp(w)
+            np.testing.assert_allclose(R, Rotation.from_rotvec(w).as_matrix(), atol=1e-12,
+                                       rtol=0)
+            R_scipy = Rotation.from_rotvec(w).as_matrix()
+            np.testing.assert_allclose(rotation_log(R_scipy), Rotation.from_matrix(
+                R_scipy).as_rotvec(), atol=1e-12, rtol=0)
+            assert rotation_angle(R_scipy) == pytest.approx(angle, abs=1e-7)
+            if angle < np.pi - 1e-6:  # (at π the axis sign is a convention)
+                np.testing.assert_allclose(rotation_log(R), w, atol=1e-9, rtol=0)
+    noisy = rotation_exp([0.3, -0.2, 1.0]) + 1e-6 * rng.normal(size=(3, 3))
+    np.testing.assert_allclose(rotation_log(noisy), Rotation.from_matrix(noisy).as_rotvec(),
+                               atol=1e-12, rtol=0)
+    with pytest.raises(ValueError):
+        rotation_log(np.diag([1.0, 1.0, -1.0]))

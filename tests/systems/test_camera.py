@@ -190,3 +190,27 @@ def test_ports():
     assert sizes == {"features": 12, "visible": 6, "X_CT_measured": 12, "X_WC": 12}
     # Outputs read state only: no direct feedthrough, so feedback loops are not algebraic.
     assert not camera.HasAnyDirectFeedthrough()
+
+
+@pytest.mark.parametrize("model", ["paper", "so3"])
+def test_per_sample_path_equals_project_points_and_apply_pose_noise(model):
+    """The camera's update inlines project_points / apply_pose_noise (no per-sample checks): it
+    must produce exactly their results from the same noise samples."""
+    from handeye_drake.vision.camera_model import apply_pose_noise
+    rng = np.random.default_rng(7)
+    camera = HandEyeCamera(CAM, X_EC, P_TQ, X_WT, PERIOD, pixel_sigma=0.7,
+                           pose_noise_model=model, rotation_sigma=0.01, translation_sigma=0.002)
+    context = camera.CreateDefaultContext()
+    pixel_noise, pose_noise = rng.normal(size=2 * len(P_TQ)), rng.normal(size=12)
+    camera.GetInputPort("X_WE").FixValue(context, pose_to_vector(X_WE))
+    camera.GetInputPort("pixel_noise").FixValue(context, pixel_noise)
+    camera.GetInputPort("pose_noise").FixValue(context, pose_noise)
+    state = context.get_discrete_state().Clone()
+    camera._UpdateImage(context, state)
+    X_CT = inverse(X_WE @ X_EC) @ X_WT
+    uv, _, in_image = project_points(P_TQ @ X_CT[:3, :3].T + X_CT[:3, 3], CAM)
+    uv[in_image] += 0.7 * pixel_noise.reshape(-1, 2)[in_image]
+    np.testing.assert_array_equal(state.get_vector(0).get_value(), uv.reshape(-1))
+    np.testing.assert_array_equal(state.get_vector(1).get_value(), in_image.astype(float))
+    np.testing.assert_array_equal(state.get_vector(2).get_value(), pose_to_vector(
+        apply_pose_noise(X_CT, pose_noise, model, 0.01, 0.002)))

@@ -313,3 +313,19 @@ def test_end_effector_matrix_is_what_the_servo_inverts():
     L = end_effector_interaction_matrix(uv[:3], Z[:3], CAM, X_CE)
     V = ibvs_twist(uv[:3], UV_STAR[:3], Z[:3], CAM, X_CE, 1.5)
     np.testing.assert_allclose(L @ V, -1.5 * (uv[:3] - UV_STAR[:3]).reshape(-1), rtol=1e-8)
+
+
+@pytest.mark.parametrize("visible", [[1, 1, 1, 1, 1], [1, 0, 1, 1, 1]])
+def test_per_sample_law_equals_ibvs_twist_and_saturation(visible):
+    """The servo's update inlines ibvs_twist + saturate_twist (no per-sample checks of the
+    arguments): exactly their result, saturated or not."""
+    from handeye_drake.vision import saturate_twist
+    uv, Z, X_CT = measure(X_WE_START)
+    uv = uv + np.random.default_rng(3).normal(scale=2.0, size=uv.shape)
+    usable = np.array(visible, bool)
+    for max_w, max_v in ((math.inf, math.inf), (0.01, 0.005)):
+        servo = VisualServoController(CAM, P_TQ, UV_STAR.reshape(-1), 0.7, PERIOD,
+                                      max_angular_speed=max_w, max_linear_speed=max_v)
+        expected = saturate_twist(ibvs_twist(uv, UV_STAR, Z, CAM, X_CE, 0.7, visible=usable),
+                                  max_w, max_v)
+        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, X_CE, usable), expected)

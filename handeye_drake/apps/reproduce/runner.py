@@ -1,6 +1,7 @@
 """Reproduce the paper's experiments (its section 3, Figures 2–10) with one command.
 
     handeye-drake reproduce [fig2 … fig10 | all] [--runs N] [--seed S] [--workers W] [--out DIR]
+                            [--scheduler tcp://HOST:8786 | --dask-local N]
                             [--motions K] [--duration T] [--no-progress]
 
 For each requested figure it writes ``DIR/figN.png`` (laid out like the paper's figure) and
@@ -24,12 +25,12 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import os
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..executors import add_executor_arguments, make_executor
 from ..outputs import prepare_output_dir
 from ..progress import progress_bar
 from .experiments import EXPERIMENTS, FIGURES, SweepResult
@@ -268,9 +269,12 @@ def _command(args) -> int:
         figures + [f"--{k} {getattr(args, k)}" for k in ("runs", "seed", "workers", "motions",
                                                           "duration")
                    if getattr(args, k) is not None] + [f"--out {args.out}"])
-    report = reproduce(figures, runs=args.runs, seed=args.seed, workers=args.workers,
-                       out=args.out, progress=not args.no_progress, motions=args.motions,
-                       duration=args.duration, command=command, force=args.force)
+    # Dask when asked (--scheduler / --dask-local); else reproduce's own process pool.
+    with make_executor(1, args.scheduler, args.dask_local) as (executor, where):
+        report = reproduce(figures, runs=args.runs, seed=args.seed, workers=args.workers,
+                           out=args.out, executor=executor, progress=not args.no_progress,
+                           motions=args.motions, duration=args.duration, command=command,
+                           force=args.force)
     print(f"reproduced {', '.join(_figure_list(figures, report.results))} in "
           f"{report.wall_time:.1f} s wall")
     print("wrote: " + ", ".join(str(p) for p in report.written))
@@ -292,8 +296,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="simulations per level (default: the paper's — 50 for Figs 3–8, 500 "
                         "for Fig. 9; 1000 matrices for Fig. 2, 10 closed-loop runs for Fig. 10)")
     p.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
-    p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
-                   help="worker processes (default: the number of CPUs)")
+    add_executor_arguments(p, workers_help="local worker processes (default: the number of "
+                           "CPUs)")
     p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
                    help=f"output directory (default {DEFAULT_OUT}); an existing one must be "
                         "empty or hold this command's earlier output, whose stale files are "

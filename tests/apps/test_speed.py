@@ -1,0 +1,51 @@
+"""benchmark speed: the references compute what the library computes (no timing assertions)."""
+
+import numpy as np
+import pytest
+
+from handeye_drake.apps import speed
+
+
+def test_references_equal_the_library_and_rows_carry_their_reference():
+    rows = speed.estimator_section(repeats=1, num_samples=40, log=lambda s: None)
+    assert len(rows) == 6  # 3 estimators × (validated update, unchecked _update)
+    for row in rows:
+        assert row["reference"] == "straight-line numpy reference"
+        assert row["value_us"] > 0 and row["reference_us"] > 0 and row["target"] == 1.5
+        assert row["ratio"] == pytest.approx(row["value_us"] / row["reference_us"])
+
+
+def test_the_reference_check_catches_a_different_computation():
+    X_BE, X_CT, X_CE, _ = speed.sample_poses(20)
+    P0 = np.diag([1e-4] * 6 + [1.0] * 6)
+    Rn = np.diag([0.002**2] * 3 + [0.0005**2] * 3)
+    X, _, P, _, n = speed.reference_target_filter(X_BE, X_CT, X_CE, P0, Rn, np.inf, 3)
+    assert n == 19
+    speed._close("X_CE", X, X)
+    with pytest.raises(AssertionError, match="disagree on P"):
+        speed._close("P", P * (1 + 1e-6), P)
+
+
+def test_calibrator_in_a_diagram_equals_the_bare_estimator():
+    (row,) = speed.calibrator_section(repeats=1, num_samples=30, log=lambda s: None)
+    assert "estimate logged: 30 samples" in row["what"] and row["ratio"] > 0
+
+
+def test_recordings_follow_the_example_pose_model(tmp_path):
+    from handeye_drake.recorded.example import TRUE_X_EC, X_BT, camera_pose
+    from handeye_drake.estimation.se3 import inverse
+    robot, camera, X_BE, X_CT = speed.write_recording(tmp_path, 50)
+    lines = [l for l in camera.read_text().splitlines() if not l.startswith("#")]
+    assert len(lines) == 50 and float(lines[1].split()[0]) == pytest.approx(1 / 15 + 0.02, abs=1e-6)
+    np.testing.assert_allclose(X_BE[7], camera_pose(7 / 15) @ inverse(TRUE_X_EC), atol=1e-12)
+    # X_CT: the true pose up to the example's noise (0.1°, 0.5 mm).
+    X_true = inverse(camera_pose(7 / 15)) @ X_BT
+    assert np.abs(X_CT[7] - X_true).max() < 0.01
+    assert sum(1 for l in robot.read_text().splitlines() if not l.startswith("#")) >= 49 / 15 * 50
+
+
+def test_rendered_section_says_when_it_is_not_available():
+    lines = []
+    rows = speed.rendered_section(1, log=lines.append)
+    if speed.rendered_model_type() is None:
+        assert rows[0]["status"] == "not available yet" and "not available yet" in lines[0]
