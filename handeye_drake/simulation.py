@@ -45,6 +45,7 @@ from .systems.camera_pose import HandCameraPose
 from .systems.frame_recorder import FrameRecorder
 from .systems.servo import SelfCalibrationMotion, VisualServoController
 from .systems.target_detector import TargetDetector
+from .systems.trigger_sampler import CameraTriggerSampler
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
 
 #: Final RMS feature error (px) above which a run's servo counts as not converged.
@@ -361,13 +362,25 @@ def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
     return servo
 
 
+def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm):
+    """X_BE held from each camera trigger: a ``ZeroOrderHold`` for the point-feature camera
+    (which samples in the same discrete phase), a ``CameraTriggerSampler`` for a rendered one
+    (which samples in the unrestricted phase, where the detector renders its image)."""
+    if isinstance(scenario.camera.model, RenderedImages):
+        hold = CameraTriggerSampler(scenario.period, 12)
+    else:
+        hold = ZeroOrderHold(scenario.period, 12)
+    sampler = builder.AddNamedSystem("robot_pose_sampler", hold)
+    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
+    return sampler
+
+
 def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
-                   servo) -> tuple[HandEyeCalibrator, ZeroOrderHold]:
+                   servo) -> tuple[HandEyeCalibrator, object]:
     """The calibrator, fed by the robot pose sampled on the camera's clock (so that (X_BE, X_CT)
     pairs are synchronous), the camera's measurement and the servo's phase."""
     period = scenario.period
-    sampler = builder.AddNamedSystem("robot_pose_sampler", ZeroOrderHold(period, 12))
-    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
+    sampler = add_robot_pose_sampler(scenario, builder, arm)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
