@@ -10,6 +10,13 @@
     └───────────┘◀────────└────────────┘       └─────────────────────┘
           X_CE_estimate (the feedback of the design)
 
+With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
+SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
+visible, X_CT_measured, and ``found`` → the calibrator's ``X_CT_valid``, its covariance →
+``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``),
+and the robot pose is sampled by a ``CameraTriggerSampler``, in the same update phase as the
+image.
+
 ``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
 simulates it and returns a ``ScenarioResult``.
 """
@@ -32,7 +39,13 @@ from pydrake.systems.primitives import (
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
 from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_pose
-from .scenario import RenderedImages, Scenario, So3PoseNoise, transform_matrix
+from .scenario import (
+    RENDERED_PIXEL_SIGMA,
+    RenderedImages,
+    Scenario,
+    So3PoseNoise,
+    transform_matrix,
+)
 from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
 from .systems.calibrator import (
     STATUS_COLLECTING,
@@ -207,8 +220,10 @@ def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
 
 
 #: Options of the in-loop detector: the slow chessboard search (75+ ms on a frame without a
-#: board) is off, so a frame where the board is lost costs no more than one where it is found.
-LOOP_DETECT_OPTIONS = {"thorough": False}
+#: board) is off, so a frame where the board is lost costs no more than one where it is found;
+#: the pixel noise of its covariance is floored at the noise the calibrator assumes for rendered
+#: frames (``scenario.RENDERED_PIXEL_SIGMA``, which says why).
+LOOP_DETECT_OPTIONS = {"thorough": False, "min_pixel_sigma": RENDERED_PIXEL_SIGMA}
 
 
 @dataclass
@@ -332,6 +347,20 @@ def _saved_frames(scenario: Scenario, camera: RenderedCameraParts, context) -> l
         frames.append(SavedFrame(index, scenario.camera.model.frames_to_save[index], t, image,
                                  detection))
     return frames
+
+
+def _detector_diagnostics(loop, logs: dict, times) -> list[str]:
+    """Why a rendered run should not be trusted: the board lost at the end of the run."""
+    if not isinstance(loop.camera, RenderedCameraParts):
+        return []
+    found = logs["detector_found"].data()[0] > 0.5
+    if found[-1]:
+        return []
+    seen = np.flatnonzero(found)
+    last = f"last seen at t = {times[seen[-1]]:.3f} s" if seen.size else "never seen"
+    return [f"the detector does not find the board at the end of the run ({last}; "
+            f"found in {int(found.sum())} of {found.size} frames): the servo holds still "
+            "(zero command) and the calibrator skips those frames"]
 
 
 def _detector_results(scenario: Scenario, loop, logs: dict, context) -> dict:
@@ -524,6 +553,8 @@ class ScenarioResult:
     diagnostics: list = field(default_factory=list)
     #: The run was stopped (Ctrl-C) before ``scenario.duration``.
     interrupted: bool = False
+    #: (K, 6) the servo's command [ω (rad/s); v (m/s)] in E.
+    V_WE_E_command: np.ndarray | None = None
     #: Rendered camera only (None otherwise), per camera sample: the detector's found flag (1/0),
     #: the reprojection RMS (px) and the number of board points of its last found frame / this
     #: frame, and the frames kept by ``camera.model.frames_to_save`` (``SavedFrame``).
@@ -568,11 +599,12 @@ class ScenarioResult:
 
     def _detector_summary(self) -> dict:
         """Rendered camera only: how often the detector found the board, and its reprojection
-        RMS (px) over the frames where it did."""
+        RMS (px) over the frames where it did (log 0, the initialization, left out: log 1
+        repeats the frame at t = 0)."""
         if self.detector_found is None:
             return {}
-        found = self.detector_found > 0.5
-        rms = self.reprojection_rms_px[found]
+        found = self.detector_found[1:] > 0.5
+        rms = self.reprojection_rms_px[1:][found]
         return {"detector_frames": int(found.size), "detector_found_frames": int(found.sum()),
                 "reprojection_rms_px_median": float(np.median(rms)) if rms.size else None,
                 "reprojection_rms_px_max": float(rms.max()) if rms.size else None}
@@ -657,7 +689,8 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
         X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),
         servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall,
-        calibrator_mode=mode, diagnostics=diagnostics,
+        calibrator_mode=mode, diagnostics=diagnostics + _detector_diagnostics(loop, logs, times),
+        V_WE_E_command=data["V_WE_E_command"],
         **_detector_results(scenario, loop, logs, context))
 
 

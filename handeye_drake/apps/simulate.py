@@ -155,7 +155,7 @@ def run_simulate(args) -> int:
                   if i not in saved]
         if missed:
             print(f"  frames_to_save: no frame at {', '.join(f'{t:g}' for t in missed)} s "
-                  f"(after the last frame at {result.times[-1]:.3f} s)")
+                  f"(the run ended at {result.sim_time:g} s)")
     print(f"  simulated {summary['simulated_time_s']:.2f} s in {summary['wall_time_s']:.2f} s wall "
           f"(real-time factor {summary['real_time_factor']:.2f})"
           + (" — INTERRUPTED, results so far saved" if result.interrupted else ""))
