@@ -112,8 +112,8 @@ def compare(path, seed: int) -> None:
     trans = 1e3 * np.linalg.norm(E[:, 3:], axis=1)
     nees = [e @ np.linalg.solve(rendered.detector_covariance[k], e) for e, k in zip(E, rows)]
     found = rendered.detector_found > 0.5
-    print(f"scenario {path} (seed {seed}), {len(rendered.times)} frames, board found in "
-          f"{int(found.sum())}")
+    print(f"scenario {path} (seed {seed}), {len(rendered.times) - 1} frames, board found in "
+          f"{int(found[1:].sum())}")
     print(f"detector vs truth over {len(E)} frames: rotation RMS {np.sqrt(np.mean(rot**2)):.4f}°"
           f" (max {rot.max():.4f}°), translation RMS {np.sqrt(np.mean(trans**2)):.4f} mm (max "
           f"{trans.max():.4f} mm) at {np.min(rendered.X_CT_samples[rows, 2, 3]):.3f}–"
