@@ -24,7 +24,6 @@ units, end-effector axes).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -604,15 +603,6 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, method: str = DEFAU
     return result
 
 
-def _file_info(path) -> dict:
-    p = Path(path)
-    try:
-        digest = hashlib.sha256(p.read_bytes()).hexdigest()
-    except OSError:
-        digest = None
-    return {"path": str(path), "sha256": digest}
-
-
 def calibrate_files(robot_path, camera_path, fmt: str | None = None,
                     camera_in_target: bool = False, translation_scale: float = 1.0,
                     max_translation: float | None = MAX_TRANSLATION, **kwargs) -> CalibrationResult:
@@ -623,8 +613,11 @@ def calibrate_files(robot_path, camera_path, fmt: str | None = None,
     camera = read_poses(camera_path, "camera", fmt, camera_in_target, translation_scale,
                         max_translation)
     result = calibrate_streams(robot, camera, **kwargs)
-    result.inputs = {"robot": {**_file_info(robot_path), "samples": len(robot)},
-                     "camera": {**_file_info(camera_path), "samples": len(camera)},
+    # The digests of the bytes the readers read: no second read (FIFOs, pipes).
+    result.inputs = {"robot": {"path": str(robot_path), "sha256": robot.sha256,
+                               "samples": len(robot)},
+                     "camera": {"path": str(camera_path), "sha256": camera.sha256,
+                                "samples": len(camera)},
                      "format": fmt or "from extension",
                      "camera_pose_is_camera_in_target": bool(camera_in_target),
                      "translation_scale": float(translation_scale)}

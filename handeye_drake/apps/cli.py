@@ -4,6 +4,7 @@ no application imports this module back.
     handeye-drake simulate    closed-loop simulation of a scenario
     handeye-drake scenario    the default scenario as YAML
     handeye-drake calibrate   hand-eye calibration from recorded robot and camera poses
+    handeye-drake plan        the next robot poses to record (D-optimal design)
     handeye-drake reproduce   the paper's experiments (Figures 2–10)
     handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit
 
@@ -16,9 +17,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import accuracy, calibrate, reproduce, simulate
+from . import accuracy, calibrate, plan, reproduce, simulate
 
-APPLICATIONS = (simulate, calibrate, reproduce)
+APPLICATIONS = (simulate, calibrate, plan, reproduce)
 #: Sub-commands of ``handeye-drake benchmark``.
 BENCHMARKS = (accuracy,)
 

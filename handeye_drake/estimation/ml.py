@@ -555,3 +555,33 @@ def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
     cov = _covariance(H, "X_BE_list, X_CT_list")
     return _result(X_CE, cov[:6, :6].copy(), r, njev, _pose_residual_summary((X_CE, X_BT), data),
                    X_BT=X_BT, full_cov=cov)
+
+
+def pose_jacobians(X_EB, X_CE, X_BT, rotation_sigma: float, translation_sigma: float,
+                   noise_model: str = "so3") -> np.ndarray:
+    """Per-sample whitened Jacobians of the pose form at noise-free measurements.
+
+    For each robot pose, the Jacobian of the whitened residual of ``refine_ml_poses`` with
+    respect to [δθ_CE; δt_CE; δθ_BT; δt_BT] (left perturbations, ``manifold``'s convention),
+    evaluated where the measurement equals its prediction X_CE · X_EB_k · X_BT. Σ_k H_kᵀ H_k is
+    then the Fisher information of the samples (what ``estimation.observability`` analyses and
+    ``estimation.planning`` maximises); it depends on the robot poses, the rotation of X_CE and
+    the translations of X_CE and X_BT only.
+
+    Eye-to-hand (camera fixed in the base, target on the flange) is the same model with
+    X_EB → X_BE, X_CE → X_CB and X_BT → X_ET.
+
+    Args:
+        X_EB: (K, 4, 4) robot poses inverted (base in end-effector), rigid.
+        X_CE, X_BT: the linearization point (4×4 rigid).
+        rotation_sigma, translation_sigma, noise_model: as ``refine_ml_poses``.
+
+    Returns:
+        (K, m, 12) array, m = 6 ("so3") or 12 ("paper").
+    """
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    X_EB = np.asarray(X_EB, dtype=float).reshape(-1, 4, 4)
+    R_EB, t_EB = X_EB[:, :3, :3], X_EB[:, :3, 3]
+    R_CT, t_CT, _ = _pose_prediction(X_CE, X_BT, R_EB, t_EB)
+    _, H = _pose_terms((X_CE, X_BT), (R_CT, R_CT, t_CT, R_EB, t_EB), noise_model, sr, st)
+    return H.reshape(len(X_EB), -1, 12)

@@ -11,6 +11,12 @@ each camera motion A between two camera samples equals that of the matching robo
 (A = X B X⁻¹ are conjugate, whatever the hand-eye X), so the offset minimizes a robust measure of
 |θ_A| − |θ_B| over the recording: a grid search over the bounded range, then a bounded scalar
 refinement around the best grid point.
+
+Scale: the interpolator computes the relative rotation of a robot sampling interval only when a
+query falls in it, so building one for 10⁶ robot samples costs a validation pass, and queries cost
+what they touch. The offset search compares motions starting at no more than
+``MAX_OFFSET_ANCHORS`` camera samples, evenly spaced over the recording (see
+``estimate_time_offset``).
 """
 
 from __future__ import annotations
@@ -22,7 +28,35 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from .formats import PoseStream
+from .formats import LineNumbers, PoseStream, _progress, slow_clock_hint
+
+#: Largest number of camera samples the motions of the time-offset search start from. Beyond,
+#: evenly spaced ones are used: the cost minimum's width is set by the sampling period and the
+#: noise, not by the number of motions, and each of the (up to 2001) cost evaluations would
+#: otherwise be linear in the recording.
+MAX_OFFSET_ANCHORS = 2000
+
+
+_BLOCK = 1 << 16  # queries interpolated at a time: bounded temporaries
+
+
+def _log_rotations(M: np.ndarray) -> np.ndarray:
+    """Rotation vectors of a stack of rotation matrices: from the skew part and the trace
+    (θ = atan2(sin θ, cos θ), accurate at small angles); scipy's from_matrix near π, where the
+    skew part vanishes."""
+    s = 0.5 * np.stack([M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0],
+                        M[:, 1, 0] - M[:, 0, 1]], axis=1)
+    sin = np.sqrt(np.einsum("ni,ni->n", s, s))
+    cos = 0.5 * (np.trace(M, axis1=1, axis2=2) - 1.0)
+    theta = np.arctan2(sin, cos)
+    factor = np.ones_like(theta)
+    nz = sin > 0
+    factor[nz] = theta[nz] / sin[nz]
+    out = factor[:, None] * s
+    far = cos < -0.5  # beyond 120°
+    if far.any():
+        out[far] = Rotation.from_matrix(M[far]).as_rotvec()
+    return out
 
 
 def _floats(value, name: str) -> np.ndarray:
@@ -49,15 +83,31 @@ class PoseInterpolator:
                              f"{self.times.shape} and {self.poses.shape}")
         if not (np.all(np.isfinite(self.times)) and np.all(np.isfinite(self.poses))):
             raise ValueError("times, poses: contain NaN or infinite values")
-        if np.any(np.diff(self.times) <= 0):
+        if not np.all(self.times[1:] > self.times[:-1]):
             raise ValueError("times: must be strictly increasing")
         self._R = self.poses[:, :3, :3]
         self._p = self.poses[:, :3, 3]
-        if len(self.times) > 1:
-            rel = Rotation.from_matrix(np.transpose(self._R[:-1], (0, 2, 1)) @ self._R[1:])
-            self._segment_rotvec = rel.as_rotvec()  # R_{i+1} = R_i exp([ω_i]×)
-        else:
-            self._segment_rotvec = np.zeros((0, 3))
+        # ω_i with R_{i+1} = R_i exp([ω_i]×), computed for the intervals queries fall in.
+        n = max(len(self.times) - 1, 0)
+        self._segment_rotvec_cache = np.empty((n, 3))
+        self._segment_known = np.zeros(n, dtype=bool)
+
+    def _segment_rotvec(self, i: np.ndarray) -> np.ndarray:
+        """ω of the sampling intervals i (computed once each)."""
+        missing = i[~self._segment_known[i]]
+        if len(missing):
+            if len(missing) > len(self._segment_known) // 16:
+                need = np.zeros(len(self._segment_known), dtype=bool)
+                need[missing] = True
+                missing = np.flatnonzero(need)
+            else:
+                missing = np.unique(missing)
+            for b in range(0, len(missing), _BLOCK):
+                m = missing[b:b + _BLOCK]
+                self._segment_rotvec_cache[m] = _log_rotations(
+                    np.einsum("nki,nkj->nij", self._R[m], self._R[m + 1]))
+            self._segment_known[missing] = True
+        return self._segment_rotvec_cache[i]
 
     @property
     def span(self) -> tuple[float, float]:
@@ -70,23 +120,35 @@ class PoseInterpolator:
         i, s = self._locate(q)
         if len(self.times) == 1:
             return np.zeros_like(q)
-        length = self.times[i + 1] - self.times[i]
+        with np.errstate(over="ignore"):
+            length = self.times[i + 1] - self.times[i]
         return np.where((s == 0) | (s == 1), 0.0, length)
 
     def _locate(self, q):
         if len(self.times) == 1:
             return np.zeros(q.shape, dtype=int), np.zeros(q.shape)
         i = np.clip(np.searchsorted(self.times, q, side="right") - 1, 0, len(self.times) - 2)
-        s = (q - self.times[i]) / (self.times[i + 1] - self.times[i])
-        return i, np.clip(s, 0.0, 1.0)
+        with np.errstate(over="ignore", invalid="ignore"):  # huge spans: clipped below
+            s = (q - self.times[i]) / (self.times[i + 1] - self.times[i])
+        return i, np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0)
+
+    def _rotations(self, i: np.ndarray, s: np.ndarray, out: np.ndarray) -> None:
+        """out[k] = R_i exp(s ω_i) for located queries, block by block (bounded temporaries)."""
+        if len(self.times) == 1:
+            out[:] = self._R[i]
+            return
+        for b in range(0, len(i), _BLOCK):
+            ib, sb = i[b:b + _BLOCK], s[b:b + _BLOCK]
+            out[b:b + _BLOCK] = self._R[ib] @ Rotation.from_rotvec(
+                sb[:, None] * self._segment_rotvec(ib)).as_matrix()
 
     def rotations(self, query_times) -> np.ndarray:
         """(M, 3, 3) interpolated rotations (queries must lie inside ``span``)."""
         q = self._check(query_times)
         i, s = self._locate(q)
-        if len(self.times) == 1:
-            return self._R[i]
-        return self._R[i] @ Rotation.from_rotvec(s[:, None] * self._segment_rotvec[i]).as_matrix()
+        out = np.empty((len(q), 3, 3))
+        self._rotations(i, s, out)
+        return out
 
     def __call__(self, query_times) -> np.ndarray:
         """(M, 4, 4) interpolated poses (queries must lie inside ``span``)."""
@@ -94,11 +156,14 @@ class PoseInterpolator:
         i, s = self._locate(q)
         X = np.zeros((len(q), 4, 4))
         X[:, 3, 3] = 1.0
-        X[:, :3, :3] = self.rotations(q)
+        self._rotations(i, s, X[:, :3, :3])
         if len(self.times) == 1:
             X[:, :3, 3] = self._p[i]
         else:
-            X[:, :3, 3] = self._p[i] + s[:, None] * (self._p[i + 1] - self._p[i])
+            for b in range(0, len(q), _BLOCK):
+                ib, sb = i[b:b + _BLOCK], s[b:b + _BLOCK]
+                X[b:b + _BLOCK, :3, 3] = self._p[ib] + sb[:, None] * (self._p[ib + 1]
+                                                                       - self._p[ib])
         return X
 
     def _check(self, query_times) -> np.ndarray:
@@ -131,7 +196,7 @@ class AlignedSamples:
         X_CT: (M, 4, 4) camera poses (as read).
         camera_times: (M,) camera time stamps, or None for index-paired streams.
         camera_index: (M,) index of each kept sample in the camera stream.
-        camera_lines: line of each kept sample in the camera file (for messages).
+        camera_lines: line of each kept sample in the camera file (``LineNumbers``).
         camera_source: the camera file name.
         time_offset: the offset used (s; see the module docstring).
         dropped_outside: camera lines dropped because they fall outside the robot's time span.
@@ -157,6 +222,30 @@ class AlignedSamples:
 
 def _median_period(times: np.ndarray) -> float:
     return float(np.median(np.diff(times))) if len(times) > 1 else math.inf
+
+
+def _units_hint(robot: PoseStream, camera: PoseStream) -> str:
+    """Why the clocks of two streams may not match: a time unit other than seconds in one of
+    them (a slow clock, or spans far apart in length), for messages; "" when nothing shows."""
+    hints = []
+    for s in (robot, camera):
+        h = slow_clock_hint(s.timestamps)
+        if h:
+            hints.append(f"{s.source}: {h}")
+    if not hints and len(robot) > 1 and len(camera) > 1:
+        r = float(robot.timestamps[-1] - robot.timestamps[0])
+        c = float(camera.timestamps[-1] - camera.timestamps[0])
+        if r > 0 and c > 0 and not 1 / 30 < c / r < 30:
+            big, small = (camera, robot) if c > r else (robot, camera)
+            hints.append(f"{big.source} spans {max(c, r) / min(c, r):.3g}× the time of "
+                         f"{small.source}: do both files use the same time unit (seconds; "
+                         "time_scale, command line --time-scale, rescales one)?")
+    return "; ".join(hints)
+
+
+def _too_few(stream: PoseStream, need: int, what: str) -> ValueError:
+    return ValueError(f"{stream.source}: too few samples: only {len(stream)}, at least {need} "
+                      f"are needed ({what})")
 
 
 def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.0,
@@ -194,10 +283,15 @@ def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.
             raise ValueError("time_offset: the streams have no timestamps, a time offset "
                              "cannot be applied")
         if len(camera) < min_samples:
-            raise ValueError(f"{camera.source}: only {len(camera)} samples, at least "
-                             f"{min_samples} are needed (2 motions)")
-        return AlignedSamples(robot.poses.copy(), camera.poses.copy(), None,
-                              np.arange(len(camera)), camera.lines, camera.source, 0.0, (), ())
+            raise _too_few(camera, min_samples, f"{min_samples - 1} motions")
+        return AlignedSamples(_read_only(robot.poses), _read_only(camera.poses), None,
+                              np.arange(len(camera)), LineNumbers(camera.lines), camera.source,
+                              0.0, LineNumbers(), LineNumbers())
+    # Too short to align at all: say so, rather than blame the clocks below.
+    if len(camera) < min_samples:
+        raise _too_few(camera, min_samples, f"{min_samples - 1} motions")
+    if len(robot) < 2:
+        raise _too_few(robot, 2, "to interpolate the robot pose between samples")
     interp = PoseInterpolator(robot.timestamps, robot.poses)
     if max_gap is None:
         max_gap = 5.0 * _median_period(robot.timestamps)
@@ -207,19 +301,32 @@ def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.
     in_gap = np.zeros_like(inside)
     in_gap[inside] = interp.segment_length(q[inside]) > max_gap
     keep = inside & ~in_gap
-    dropped_outside = tuple(camera.lines[k] for k in np.flatnonzero(~inside))
-    dropped_gap = tuple(camera.lines[k] for k in np.flatnonzero(in_gap))
+    lines = LineNumbers(camera.lines)
+    dropped_outside = lines[~inside]
+    dropped_gap = lines[in_gap]
     if keep.sum() < min_samples:
+        hint = _units_hint(robot, camera)
         raise ValueError(
             f"{camera.source}: only {int(keep.sum())} of {len(camera)} camera samples fall inside "
             f"the robot's time span [{t0!r}, {t1!r}] s of {robot.source} (camera stamps "
             f"[{float(camera.timestamps[0])!r}, {float(camera.timestamps[-1])!r}] s, time offset "
             f"{time_offset!r} s){' outside its gaps' if in_gap.any() else ''}; at least "
-            f"{min_samples} are needed — do the streams use the same clock and time unit?")
+            f"{min_samples} are needed — "
+            + (hint if hint else "do the streams use the same clock and time unit?"))
     idx = np.flatnonzero(keep)
-    return AlignedSamples(interp(q[keep]), camera.poses[keep].copy(), camera.timestamps[keep],
-                          idx, tuple(camera.lines[k] for k in idx), camera.source, time_offset,
-                          dropped_outside, dropped_gap)
+    # Samples are dropped at the ends (outside the span) or in gaps: a contiguous run of kept
+    # samples is a view, not a copy of up to 10⁶ poses.
+    contiguous = len(idx) and idx[-1] - idx[0] + 1 == len(idx)
+    X_CT = _read_only(camera.poses[idx[0]:idx[-1] + 1]) if contiguous else camera.poses[idx]
+    return AlignedSamples(interp(q[idx]), X_CT, camera.timestamps[idx], idx, lines[idx],
+                          camera.source, time_offset, dropped_outside, dropped_gap)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view (no copy of a large stream; callers must not write into it anyway)."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 class UnobservableTimeOffset(ValueError):
@@ -264,13 +371,19 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     points); around the best grid point a bounded scalar minimization of a Cauchy loss (scale
     from the residuals there, so outlying camera poses weigh little) refines the offset. Only
     camera samples whose robot instant stays inside the robot's time span for every candidate
-    offset are used, so all candidates compare the same motions.
+    offset are used, so all candidates compare the same motions. With more than
+    ``MAX_OFFSET_ANCHORS`` such samples, the motions start at ``MAX_OFFSET_ANCHORS`` of them,
+    evenly spaced (each still compared with the sample L later).
 
     Raises:
         UnobservableTimeOffset (a ValueError): too few samples overlapping for every candidate
             offset, a camera that barely rotates, a flat cost (rotation speed too uniform).
         ValueError: missing timestamps, a bad range, a cost minimum on the search bound (offset
             larger than the range, or streams that do not match).
+
+    When the cost is flat or its minimum lies on the bound and a stream's sampling period is
+    1 s or more, the message says the timestamps may be in milliseconds, microseconds or
+    nanoseconds (``formats.slow_clock_hint``).
     """
     if not (robot.has_timestamps and camera.has_timestamps):
         raise ValueError("time offset estimation needs timestamps in both streams "
@@ -281,6 +394,14 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
         raise ValueError(f"search_range: expected seconds, got {search_range!r}") from None
     if not (math.isfinite(R) and R > 0):
         raise ValueError(f"search_range: must be finite and > 0, got {search_range!r}")
+    if len(camera) < 4:
+        raise UnobservableTimeOffset(f"time offset estimation: {camera.source} has only "
+                                     f"{len(camera)} samples, at least 4 are needed")
+    if len(robot) < 2:
+        raise UnobservableTimeOffset(f"time offset estimation: {robot.source} has only "
+                                     f"{len(robot)} sample, at least 2 are needed")
+    units = _units_hint(robot, camera)
+    units = f" ({units})" if units else ""
     interp = PoseInterpolator(robot.timestamps, robot.poses)
     t0, t1 = interp.span
     tc = camera.timestamps
@@ -290,17 +411,26 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
             f"time offset estimation: only {len(ok)} camera samples of {camera.source} stay "
             f"inside the robot's time span [{t0!r}, {t1!r}] s for every offset in ±{R:g} s; "
             "need at least 4 — reduce the search range or check that both streams use the "
-            "same clock")
-    R_CT = camera.poses[ok, :3, :3]
-    tq = tc[ok]
+            f"same clock{units}")
+    lags = sorted({int(L) for L in lags if 0 < int(L) < len(ok)})
+    if not lags:
+        raise ValueError(f"lags: expected sample counts in [1, {len(ok) - 1}]")
+    anchors = np.arange(len(ok))
+    if len(ok) > MAX_OFFSET_ANCHORS:
+        anchors = np.unique(np.linspace(0, len(ok) - 1, MAX_OFFSET_ANCHORS).round().astype(int))
     firsts, seconds = [], []
     for L in lags:
-        if L < len(ok):
-            firsts.append(np.arange(len(ok) - L))
-            seconds.append(np.arange(L, len(ok)))
+        a = anchors[anchors + L < len(ok)]
+        firsts.append(a)
+        seconds.append(a + L)
     k0, k1 = np.concatenate(firsts), np.concatenate(seconds)
+    # Interpolate only at the samples the motions use: positions in `used`.
+    used, inverse_index = np.unique(np.concatenate([k0, k1]), return_inverse=True)
+    j0, j1 = inverse_index[:len(k0)], inverse_index[len(k0):]
+    R_CT = camera.poses[ok[used], :3, :3]
+    tq = tc[ok[used]]
     # The camera motion A = R_CT[k0] R_CT[k1]ᵀ has the angle of R_CT[k0]ᵀ R_CT[k1] (conjugate).
-    theta_A = _angles(R_CT[k0], R_CT[k1])
+    theta_A = _angles(R_CT[j0], R_CT[j1])
     if np.median(theta_A) < np.radians(0.05):
         raise UnobservableTimeOffset(
             f"time offset estimation: the camera barely rotates (median motion "
@@ -309,11 +439,12 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
 
     def residuals(delta: float) -> np.ndarray:
         R_BE = interp.rotations(tq - delta)
-        return theta_A - _angles(R_BE[k0], R_BE[k1])
+        return theta_A - _angles(R_BE[j0], R_BE[j1])
 
     def trimmed(delta: float) -> float:
-        r = np.sort(np.abs(residuals(delta)))
-        return float(r[:max(1, int(0.8 * len(r)))].mean())
+        r = np.abs(residuals(delta))
+        m = max(1, int(0.8 * len(r)))
+        return float(np.partition(r, m - 1)[:m].mean())
 
     if step is None:
         periods = [_median_period(robot.timestamps), _median_period(tc)]
@@ -321,20 +452,28 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     step = max(float(step), 2.0 * R / 2000.0)
     n = int(math.ceil(R / step))
     grid = np.linspace(-R, R, 2 * n + 1)
-    cost = np.array([trimmed(d) for d in grid])
+    bar = _progress(len(grid), "time offset search", None, unit="offsets")
+    cost = np.empty(len(grid))
+    try:
+        for g, d in enumerate(grid):
+            cost[g] = trimmed(d)
+            bar.update(1)
+    finally:
+        bar.close()
     best = int(np.argmin(cost))
     if best in (0, len(grid) - 1):
         raise ValueError(
             f"time offset estimation: the best offset lies on the search bound "
             f"({grid[best]:+.4g} s of ±{R:g} s): the offset is larger than the range, or the "
-            "streams do not match — widen --time-offset-range or check the timestamps")
+            "streams do not match — widen --time-offset-range or check the timestamps"
+            + units)
     spread = float(np.median(cost) - cost[best])
     # Flat: no clear minimum, relative to the noise floor and to the motion sizes (rounding).
     if not spread > max(0.05 * cost[best], 1e-6 * float(np.median(theta_A))):
         raise UnobservableTimeOffset(
             f"time offset estimation: the cost is flat over ±{R:g} s (best {cost[best]:.3g} "
             f"rad, median {np.median(cost):.3g} rad): the rotation speed is too uniform to "
-            "observe a time offset; pass --time-offset SECONDS instead")
+            "observe a time offset; pass --time-offset SECONDS instead" + units)
     r = residuals(grid[best])
     scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
 

@@ -5,6 +5,10 @@ A = X_{CiCj} = X_CT[i] X_CT[j]⁻¹ and the robot motion B = X_{EiEj} = X_BE[i]�
 A X_CE = X_CE B. Two kinds of pairs are formed:
 
 - consecutive pairs (k, k+1): the small motions of the recording (what the on-line filter eats);
+  with more than ``MAX_CONSECUTIVE_PAIRS`` + 1 samples, only ``MAX_CONSECUTIVE_PAIRS`` of them,
+  starting at evenly spaced samples (a long high-rate recording's consecutive motions are tiny,
+  below ``min_rotation_deg``, and tens of thousands of them already pin down the noise level of
+  the screw-angle test; all of them would cost memory and time linear in the recording);
 - wide pairs: a matching of the samples (each sample in at most one wide pair, so wide pairs have
   independent noise) chosen greedily by decreasing robot rotation angle, capped at
   ``max_pair_angle_deg`` (90° by default: larger motions bring no more information and approach
@@ -20,7 +24,8 @@ pairs. (2) Consensus refit (RANSAC-like, deterministic): solve on the usable pai
 compute every pair's residual of AX = XB (rotation angle of (A X)(X B)⁻¹ in degrees and
 ‖t(A X) − t(X B)‖ in length units), reject pairs above 3 × the median residual of the current
 inliers, re-solve, until the inlier set no longer changes. A camera sample all of whose pairs are
-rejected is reported as an outlying camera pose.
+rejected is reported as an outlying camera pose (samples in no pair, beyond the caps above, are
+not examined).
 
 Data that no X can explain are refused rather than trimmed down: rotation angles of A and B that
 disagree in the median (> max(1°, 20 %) of the motion: streams out of sync or not the same
@@ -45,8 +50,14 @@ from scipy.spatial.transform import Rotation
 from ..estimation.se3 import inverse
 from ..estimation.solvers import METHODS, solve_ax_xb
 from ..estimation.validation import MAX_MAGNITUDE
+from .formats import invert_poses
 
 MAX_WIDE_SAMPLES = 1500
+#: Largest number of consecutive pairs formed (see the module docstring).
+MAX_CONSECUTIVE_PAIRS = 20000
+#: Below this many pairs the noise level of the screw-angle test (a MAD over the pairs) is too
+#: uncertain to tell noise from outliers; failing it then says so.
+MIN_PAIRS_FOR_OUTLIER_TEST = 10
 #: Floors of the outlier thresholds, so noise-free data does not reject rounding errors.
 ANGLE_TEST_FLOOR_DEG = 0.01
 RESIDUAL_FLOOR_DEG = 1e-4
@@ -83,10 +94,15 @@ def _check_samples(X_BE, X_CT):
                          f"{X_BE.shape} and {X_CT.shape}")
     if not (np.all(np.isfinite(X_BE)) and np.all(np.isfinite(X_CT))):
         raise ValueError("X_BE, X_CT: contain NaN or infinite values")
-    if max(np.abs(X_BE).max(initial=0.0), np.abs(X_CT).max(initial=0.0)) > MAX_MAGNITUDE:
+    if max(_abs_max(X_BE), _abs_max(X_CT)) > MAX_MAGNITUDE:
         raise ValueError(f"X_BE, X_CT: entries beyond {MAX_MAGNITUDE:g}, products of poses would "
                          "overflow")
     return X_BE, X_CT
+
+
+def _abs_max(X: np.ndarray) -> float:
+    """max |X| without a temporary copy of X (recordings can hold 10⁶ poses)."""
+    return max(float(X.max(initial=0.0)), -float(X.min(initial=0.0)))
 
 
 def _motion_angles(M: np.ndarray) -> np.ndarray:
@@ -106,8 +122,9 @@ def form_pairs(X_BE, X_CT, max_pair_angle_deg: float = 90.0,
     M = len(X_BE)
     if M < 2:
         raise ValueError(f"need at least 2 aligned samples to form a motion, got {M}")
-    pairs = [(k, k + 1) for k in range(M - 1)]
-    consecutive = [True] * (M - 1)
+    starts = np.arange(M - 1)
+    if M - 1 > MAX_CONSECUTIVE_PAIRS:
+        starts = np.unique(np.linspace(0, M - 2, MAX_CONSECUTIVE_PAIRS).round().astype(int))
     cand = np.arange(M)
     if M > MAX_WIDE_SAMPLES:
         cand = np.unique(np.linspace(0, M - 1, MAX_WIDE_SAMPLES).round().astype(int))
@@ -118,18 +135,22 @@ def form_pairs(X_BE, X_CT, max_pair_angle_deg: float = 90.0,
     ok = (a <= math.radians(max_pair_angle_deg)) & (a >= math.radians(min_rotation_deg))
     iu, ju, a = iu[ok], ju[ok], a[ok]
     order = np.lexsort((ju, iu, -a))  # largest angle first; ties by index: deterministic
-    used = np.zeros(len(cand), dtype=bool)
-    for o in order:
-        i, j = iu[o], ju[o]
+    used = [False] * len(cand)
+    free = len(cand)
+    wide = []
+    for i, j in zip(iu[order].tolist(), ju[order].tolist()):  # Python ints: a fast loop
         if not (used[i] or used[j]):
             used[i] = used[j] = True
-            pairs.append((int(cand[i]), int(cand[j])))
-            consecutive.append(False)
-    index = np.array(pairs, dtype=int).reshape(-1, 2)
+            wide.append((int(cand[i]), int(cand[j])))
+            free -= 2
+            if free < 2:
+                break
+    index = np.concatenate([np.c_[starts, starts + 1], np.array(wide, dtype=int).reshape(-1, 2)])
+    consecutive = np.arange(len(index)) < len(starts)
     i, j = index[:, 0], index[:, 1]
-    A = X_CT[i] @ np.array([inverse(X) for X in X_CT[j]]).reshape(-1, 4, 4)
-    B = np.array([inverse(X) for X in X_BE[i]]).reshape(-1, 4, 4) @ X_BE[j]
-    return MotionPairs(index, np.array(consecutive), A, B, _motion_angles(A), _motion_angles(B))
+    A = X_CT[i] @ invert_poses(X_CT[j])
+    B = invert_poses(X_BE[i]) @ X_BE[j]
+    return MotionPairs(index, consecutive, A, B, _motion_angles(A), _motion_angles(B))
 
 
 def pair_residuals(A, B, X_CE) -> tuple[np.ndarray, np.ndarray]:
@@ -248,8 +269,8 @@ def robust_hand_eye(X_BE, X_CT, method: str = "daniilidis", min_rotation_deg: fl
         if not diagnose_conventions:
             raise
         X_BE, X_CT = _check_samples(X_BE, X_CT)
-        inv_BE = np.array([inverse(X) for X in X_BE])
-        inv_CT = np.array([inverse(X) for X in X_CT])
+        inv_BE = invert_poses(X_BE)
+        inv_CT = invert_poses(X_CT)
         fitting = []
         for which, hint in _ALTERNATIVES:
             alt_BE = inv_BE if which in ("robot", "both") else X_BE
@@ -306,6 +327,13 @@ def _robust_hand_eye(X_BE, X_CT, method: str = "daniilidis", min_rotation_deg: f
             f"(robot) must be equal, but differ by {med_e:.3g}° in median for motions of "
             f"{med_theta:.3g}° — are the streams synchronized (--time-offset auto), in the "
             "right format/quaternion order (tum: qx qy qz qw), and from the same recording?")
+    if screw_ok.sum() < 0.5 * len(pairs) and len(pairs) < MIN_PAIRS_FOR_OUTLIER_TEST:
+        raise ValueError(
+            f"too few samples to tell noise from outliers: {len(X_BE)} aligned samples give "
+            f"{len(pairs)} motion pairs, and {int((~screw_ok).sum())} fail the screw-angle test "
+            f"|θ_A − θ_B| ≤ {angle_tol:.3g}°, whose noise level is estimated from these same "
+            f"pairs (θ_A − θ_B = {', '.join(f'{v:.3g}' for v in e)}°); record more samples "
+            f"(≥ {MIN_PAIRS_FOR_OUTLIER_TEST} motion pairs) or check the poses")
     if screw_ok.sum() < 0.5 * len(pairs):
         raise ValueError(
             f"too many outliers: {int((~screw_ok).sum())} of {len(pairs)} motion pairs fail the "

@@ -22,6 +22,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import warnings
+
 import numpy as np
 
 from ...estimation.solvers import solve_ax_xb
@@ -125,7 +127,9 @@ def stats(result: SweepResult) -> dict:
         out[solver, "failures"] = (~ok).sum(axis=1)
         for p in (0, 1):
             v = e[:, :, j, p]
-            with np.errstate(invalid="ignore"):
+            with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                # A level where every run failed has no statistics: NaN, said by "failures".
+                warnings.simplefilter("ignore", RuntimeWarning)
                 out[solver, p] = {"min": np.nanmin(v, axis=1), "max": np.nanmax(v, axis=1),
                                   "mean": np.nanmean(v, axis=1),
                                   "rms": np.sqrt(np.nanmean(v**2, axis=1))}

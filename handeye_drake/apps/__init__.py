@@ -1,0 +1,1 @@
+"""Command-line applications (subcommands of ``handeye-drake``)."""
