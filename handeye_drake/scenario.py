@@ -101,7 +101,89 @@ class PointFeatures:
         default_factory=So3PoseNoise)
 
 
-CameraModel = typing.Union[PointFeatures]
+#: The default board of a rendered camera: 5 × 4 squares of 3 cm (15 × 12 cm), 4 × 3 inner
+#: corners; small enough to stay in a 640 × 480, fx = 800 view at 0.35 m (0.28 m wide).
+DEFAULT_RENDERED_TARGET = "charuco:5x4:0.03:0.022:DICT_5X5_100"
+
+#: Per-coordinate corner noise (px) the calibrator assumes for a rendered camera: the pose
+#: sigmas of the estimator come from the PnP covariance at the desired view with this noise
+#: (``Scenario.rendered_pose_sigmas``), and the in-loop detector floors its covariance's pixel
+#: noise at it (``simulation.LOOP_DETECT_OPTIONS``). The corners of rendered frames scatter by
+#: only ≈ 0.03 px, but their errors depend on the pose (aliasing, texture sampling), so they
+#: repeat from frame to frame while the camera slows down and rests. Over 5 variants of
+#: ``scenarios/rendered.yaml`` (``benchmarks/rendered_loop.py --consistency``), the mean NEES of
+#: the final X_EC (6 degrees of freedom: 6 is consistent) was 11.1 at 0.05 px (overconfident,
+#: up to 31.8) and 1.5 at 0.1 px (at most 4.0); with the detector's covariance floored at
+#: 0.1 px, 4.3 (at most 9.4).
+RENDERED_PIXEL_SIGMA = 0.1
+
+
+@dataclass
+class RenderedImages:
+    """The camera renders images of a calibration board (Drake ``RgbdSensor``, RenderEngineVtk,
+    headless through EGL) and a detector (``systems.target_detector``, OpenCV) measures them: the
+    servo's features and the calibrator's X_CT come from the images. Slower than
+    ``PointFeatures`` (render + detect every frame).
+
+    The image size, focal lengths, principal point (OpenCV's convention: pixel centres at
+    integers; Drake's half-pixel offset is added when rendering), frame rate, clipping planes and
+    background are ``camera.sensor``'s; a rendered camera has no skew (``camera.axes_angle_deg``
+    = 90) and no distortion. The board lies at ``target.X_WT`` (T: x along the printed columns,
+    y along the rows, z INTO the board; a board face up on a table has X_WT rpy [180, 0, yaw] and
+    is seen from the −z_T side); ``target.points`` is not used.
+
+    The calibrator skips the frames where the board is not found, and its estimator's noise is
+    derived from ``RENDERED_PIXEL_SIGMA`` (unless set in ``calibrator.estimator``), or is each
+    frame's detector covariance with ``use_detector_covariance``."""
+    #: The board, a ``vision.targets`` spec (``chessboard:…``, ``charuco:…``, ``apriltag:…``,
+    #: ``aprilgrid:…``), rendered as a textured board and detected.
+    target: str = DEFAULT_RENDERED_TARGET
+    #: Ids (``vision.targets.object_points``) of the board points used as IBVS features, at
+    #: least 3 not on one line; empty = the four outermost corners (``default_feature_ids``).
+    feature_ids: list[int] = field(default_factory=list)
+    #: Anti-aliasing: render k times larger and average k × k blocks (1…8; ≈ k² the render
+    #: time). RenderEngineVtk takes one sample per pixel, so board edges along the pixel grid
+    #: alias; 1 is enough when the desired view is rolled about the optical axis.
+    supersample: int = 1
+    #: Feed the detector's covariance of each X_CT (PnP Jacobian, residual pixel noise) to the
+    #: calibrator (TargetFilter only: sets its ``use_measurement_covariance``).
+    use_detector_covariance: bool = False
+    #: Times (s) at which ``handeye-drake simulate`` saves the rendered frame, with the detection
+    #: drawn, as ``frames/frame_NNN.png`` (the first camera frame at or after each time).
+    frames_to_save: list[float] = field(default_factory=lambda: [0.0, 1.0, 4.0, 8.0])
+
+    def parsed_target(self):
+        """The ``vision.targets`` target (ValueError naming ``camera.model.target``)."""
+        from .vision.targets import parse_target
+        try:
+            return parse_target(self.target)
+        except ValueError as e:
+            raise ValueError(f"camera.model.target: {e}") from None
+
+    def feature_ids_or_default(self) -> list[int]:
+        return list(self.feature_ids) if self.feature_ids else default_feature_ids(
+            self.parsed_target())
+
+    def feature_points_T(self) -> np.ndarray:
+        """N×3 p_TQ (m) of the feature points, in ``feature_ids`` order."""
+        from .vision.targets import object_points
+        ids, p_TQ = object_points(self.parsed_target())
+        row = {int(i): k for k, i in enumerate(ids)}
+        return p_TQ[[row[i] for i in self.feature_ids_or_default()]]
+
+
+def default_feature_ids(target) -> list[int]:
+    """The ids of the four outermost points of a target, in image order for a frontal view
+    (top-left, top-right, bottom-right, bottom-left of the printed pattern): the extremes of
+    x + y and x − y over ``object_points(target)``."""
+    from .vision.targets import object_points
+    ids, p = object_points(target)
+    s, d = p[:, 0] + p[:, 1], p[:, 0] - p[:, 1]
+    return [int(ids[np.argmin(s)]), int(ids[np.argmax(d)]), int(ids[np.argmax(s)]),
+            int(ids[np.argmin(d)])]
+
+
+CameraModel = typing.Union[PointFeatures, RenderedImages]
 
 
 def _default_sensor() -> CameraConfig:
@@ -215,10 +297,13 @@ class Scenario:
         if self.period > 0.5 * self.duration:
             raise ValueError(f"camera.sensor.fps: one frame every {self.period:g} s leaves "
                              f"fewer than 2 frames in duration = {self.duration:g} s")
-        m = self.camera.model
-        check_positive(m.pixel_sigma, "camera.model.pixel_sigma", allow_zero=True)
-        for name, value in dataclasses.asdict(m.pose_noise).items():
-            check_positive(value, f"camera.model.pose_noise.{name}", allow_zero=True)
+        if isinstance(self.camera.model, RenderedImages):
+            self._validate_rendered()
+        else:
+            m = self.camera.model
+            check_positive(m.pixel_sigma, "camera.model.pixel_sigma", allow_zero=True)
+            for name, value in dataclasses.asdict(m.pose_noise).items():
+                check_positive(value, f"camera.model.pose_noise.{name}", allow_zero=True)
         check_positive(self.servo.gain, "servo.gain")
         check_positive(self.servo.max_angular_speed, "servo.max_angular_speed")
         check_positive(self.servo.max_linear_speed, "servo.max_linear_speed")
@@ -244,6 +329,8 @@ class Scenario:
         transform_matrix(self.target.X_WT, "target.X_WT")
         transform_matrix(self.servo.X_TC_desired, "servo.X_TC_desired")
         transform_matrix(self.arm.X_WB, "arm.X_WB")
+        if isinstance(self.camera.model, RenderedImages):
+            return self  # target.points is not used: the features are the board's
         try:
             pts = np.asarray(self.target.points, dtype=float)
         except ValueError:
@@ -257,6 +344,58 @@ class Scenario:
             raise ValueError("target.points: the points are collinear (or all equal); a 6-DOF "
                              "visual servo needs at least 3 points not on one line")
         return self
+
+    def _validate_rendered(self) -> None:
+        m, s = self.camera.model, self.camera.sensor
+        target = m.parsed_target()
+        if self.camera.axes_angle_deg != 90.0:
+            raise ValueError("camera.axes_angle_deg: a rendered camera has no skew (must be 90), "
+                             f"got {self.camera.axes_angle_deg}")
+        from .vision.targets import object_points
+        ids, p_TQ = object_points(target)
+        feature_ids = m.feature_ids_or_default()
+        unknown = [i for i in feature_ids if i not in set(ids.tolist())]
+        if unknown:
+            raise ValueError(f"camera.model.feature_ids: {unknown} are not points of "
+                             f"{m.target} (ids {ids.min()}…{ids.max()}, see "
+                             "vision.targets.object_points)")
+        if len(set(feature_ids)) != len(feature_ids) or len(feature_ids) < 3:
+            raise ValueError("camera.model.feature_ids: needs at least 3 distinct ids, got "
+                             f"{feature_ids}")
+        pts = m.feature_points_T()
+        spread = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+        if spread[1] < 1e-6 * spread[0]:
+            raise ValueError(f"camera.model.feature_ids: the points {feature_ids} are on one "
+                             "line; a 6-DOF visual servo needs 3 points not on one line")
+        k = m.supersample
+        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= 8:
+            raise ValueError(f"camera.model.supersample: expected an integer in [1, 8], got {k!r}")
+        if m.use_detector_covariance and not isinstance(self.calibrator.estimator, TargetFilter):
+            raise ValueError("camera.model.use_detector_covariance: only the !TargetFilter "
+                             "estimator uses a measurement covariance, the calibrator's is "
+                             f"!{type(self.calibrator.estimator).__name__}")
+        if len(m.frames_to_save) > 100:
+            raise ValueError(f"camera.model.frames_to_save: at most 100 frames, got "
+                             f"{len(m.frames_to_save)}")
+        for i, t in enumerate(m.frames_to_save):
+            check_positive(t, f"camera.model.frames_to_save[{i}]", allow_zero=True)
+        near = check_positive(s.clipping_near, "camera.sensor.clipping_near")
+        far = check_positive(s.clipping_far, "camera.sensor.clipping_far")
+        if not near < far:
+            raise ValueError(f"camera.sensor.clipping_near: must be < clipping_far, got {near} "
+                             f"≥ {far}")
+        d = transform_matrix(self.servo.X_TC_desired, "servo.X_TC_desired")[2, 3]
+        if not near < abs(d) < far:
+            raise ValueError(f"servo.X_TC_desired: the board at {abs(d):g} m is outside the "
+                             f"camera's clipping range [{near:g}, {far:g}] m "
+                             "(camera.sensor.clipping_near, clipping_far)")
+
+    def rendered_pose_sigmas(self) -> tuple[float, float]:
+        """(rotation (rad), translation (m)) sigmas of the target pose a rendered camera measures
+        at the desired view: the largest standard deviations of the PnP covariance
+        σ² (JᵀJ)⁻¹ of all the board's points seen from ``servo.X_TC_desired``, with σ the
+        detector's corner noise on rendered frames (``RENDERED_PIXEL_SIGMA``)."""
+        return _rendered_pose_sigmas(self)
 
     @property
     def period(self) -> float:
@@ -275,13 +414,18 @@ class Scenario:
         ``TargetFilter``; for the motion filters, the noise of a motion differenced from two
         such poses with the target at the desired distance)."""
         est = self.calibrator.estimator
-        noise = self.camera.model.pose_noise
-        if isinstance(noise, So3PoseNoise):
-            so3, coefficient = noise.rotation_sigma, None
+        model = self.camera.model
+        if isinstance(model, RenderedImages):
+            (so3, st), coefficient = self.rendered_pose_sigmas(), None
+            if model.use_detector_covariance and isinstance(est, TargetFilter):
+                est = dataclasses.replace(est, use_measurement_covariance=True)
+        elif isinstance(model.pose_noise, So3PoseNoise):
+            so3, coefficient = model.pose_noise.rotation_sigma, None
+            st = model.pose_noise.translation_sigma
         else:
-            coefficient = noise.rotation_coefficient_sigma
+            coefficient = model.pose_noise.rotation_coefficient_sigma
             so3 = coefficient / math.sqrt(2.0)  # the rotation-vector part of coefficient noise
-        st = noise.translation_sigma
+            st = model.pose_noise.translation_sigma
         d = float(np.linalg.norm(transform_matrix(self.servo.X_TC_desired,
                                                   "servo.X_TC_desired")[:3, 3]))
         # A = X_CT0 X_CT1⁻¹: two poses' noise, the rotation noise moving t_A by ~ ‖t_CT‖.
@@ -296,6 +440,22 @@ class Scenario:
                 "translation_sigma": motion_st}
         changes = {k: max(v, 1e-9) for k, v in derived.items() if getattr(est, k) is None}
         return dataclasses.replace(est, **changes).validated("calibrator.estimator")
+
+
+def _rendered_pose_sigmas(scenario: Scenario) -> tuple[float, float]:
+    from .vision.camera_model import CameraIntrinsics
+    from .vision.detection import project_with_jacobian
+    from .vision.targets import object_points
+    m, s = scenario.camera.model, scenario.camera.sensor
+    u0, v0 = s.principal_point()
+    intrinsics = CameraIntrinsics(alpha_u=s.focal_x(), alpha_v=s.focal_y(), u0=u0, v0=v0,
+                                  width=s.width, height=s.height)
+    X_CT = inverse(transform_matrix(scenario.servo.X_TC_desired, "servo.X_TC_desired"))
+    _, p_TQ = object_points(m.parsed_target())
+    _, J = project_with_jacobian(X_CT, p_TQ, intrinsics)
+    cov = RENDERED_PIXEL_SIGMA**2 * np.linalg.inv(J.T @ J)
+    std = np.sqrt(np.diag(cov))
+    return float(std[:3].max()), float(std[3:].max())
 
 
 # ----------------------------------------------------------------------------- YAML checking

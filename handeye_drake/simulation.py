@@ -10,6 +10,13 @@
     └───────────┘◀────────└────────────┘       └─────────────────────┘
           X_CE_estimate (the feedback of the design)
 
+With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
+SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
+visible, X_CT_measured, and ``found`` → the calibrator's ``X_CT_valid``, its covariance →
+``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``),
+and the robot pose is sampled by a ``CameraTriggerSampler``, in the same update phase as the
+image.
+
 ``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
 simulates it and returns a ``ScenarioResult``.
 """
@@ -32,7 +39,13 @@ from pydrake.systems.primitives import (
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
 from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_pose
-from .scenario import Scenario, So3PoseNoise, transform_matrix
+from .scenario import (
+    RENDERED_PIXEL_SIGMA,
+    RenderedImages,
+    Scenario,
+    So3PoseNoise,
+    transform_matrix,
+)
 from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
 from .systems.calibrator import (
     STATUS_COLLECTING,
@@ -41,7 +54,11 @@ from .systems.calibrator import (
     HandEyeCalibrator,
 )
 from .systems.camera import HandEyeCamera
+from .systems.camera_pose import HandCameraPose
+from .systems.frame_recorder import FrameRecorder
 from .systems.servo import SelfCalibrationMotion, VisualServoController
+from .systems.target_detector import TargetDetector
+from .systems.trigger_sampler import CameraTriggerSampler
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
 
 #: Final RMS feature error (px) above which a run's servo counts as not converged.
@@ -55,6 +72,14 @@ def intrinsics_of(scenario: Scenario) -> CameraIntrinsics:
     return CameraIntrinsics(alpha_u=s.focal_x(), alpha_v=s.focal_y(),
                             theta=np.radians(scenario.camera.axes_angle_deg), u0=u0, v0=v0,
                             width=s.width, height=s.height)
+
+
+def target_points_T(scenario: Scenario) -> np.ndarray:
+    """p_TQ (N×3, m): the target points the servo uses as features — ``target.points``, or the
+    feature points of the rendered board (``camera.model.feature_ids``)."""
+    if isinstance(scenario.camera.model, RenderedImages):
+        return scenario.camera.model.feature_points_T()
+    return np.asarray(scenario.target.points, dtype=float)
 
 
 def camera_pose_on_hand(scenario: Scenario, plant) -> np.ndarray:
@@ -80,7 +105,7 @@ def camera_pose_on_hand(scenario: Scenario, plant) -> np.ndarray:
 def desired_features(scenario: Scenario) -> np.ndarray:
     """s* (2N px): the target points projected from the desired camera pose X_TC_desired."""
     X_CT = inverse(transform_matrix(scenario.servo.X_TC_desired, "servo.X_TC_desired"))
-    p_TQ = np.asarray(scenario.target.points, dtype=float)
+    p_TQ = target_points_T(scenario)
     p_CQ = (X_CT[:3, :3] @ p_TQ.T).T + X_CT[:3, 3]
     uv, in_front, in_image = project_points(p_CQ, intrinsics_of(scenario))
     if not np.all(in_front & in_image):
@@ -164,8 +189,19 @@ def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
     return _Arm(handles, control_plant, driver, ee_sensor, q0)
 
 
-def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true) -> HandEyeCamera:
-    """The camera selected by ``scenario.camera.model``, its noise sources, its X_WE input."""
+def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true):
+    """The camera selected by ``scenario.camera.model``: a ``HandEyeCamera`` (point features)
+    or the ``RenderedCameraParts`` of a rendered camera and its detector. Either has the output
+    ports the servo and the calibrator read (``get_features_output_port``,
+    ``get_visible_output_port``, ``get_X_CT_output_port``) and ``get_X_WC_output_port``."""
+    if isinstance(scenario.camera.model, RenderedImages):
+        return add_rendered_camera_and_detector(scenario, builder, arm, X_EC_true)
+    return add_point_camera(scenario, builder, arm, X_EC_true)
+
+
+def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
+                     X_EC_true) -> HandEyeCamera:
+    """The point-feature camera (a pose oracle), its noise sources, its X_WE input."""
     model = scenario.camera.model
     noise = model.pose_noise
     if isinstance(noise, So3PoseNoise):
@@ -183,12 +219,167 @@ def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true
     return camera
 
 
+#: Options of the in-loop detector: the slow chessboard search (75+ ms on a frame without a
+#: board) is off, so a frame where the board is lost costs no more than one where it is found;
+#: the pixel noise of its covariance is floored at the noise the calibrator assumes for rendered
+#: frames (``scenario.RENDERED_PIXEL_SIGMA``, which says why).
+LOOP_DETECT_OPTIONS = {"thorough": False, "min_pixel_sigma": RENDERED_PIXEL_SIGMA}
+
+
+@dataclass
+class RenderedCameraParts:
+    """A rendered camera in the loop: the ``RgbdSensor`` on the flange (``rendered``), the
+    ``TargetDetector`` measuring its images, the true camera pose for logs (``pose``) and the
+    ``FrameRecorder`` of the frames to save. Its ``get_*_output_port`` methods are those of
+    ``HandEyeCamera`` that the servo, the calibrator and the loggers read."""
+    rendered: object
+    detector: TargetDetector
+    pose: HandCameraPose
+    recorder: FrameRecorder | None
+    detect_options: dict
+
+    def get_features_output_port(self):
+        return self.detector.get_features_output_port()
+
+    def get_visible_output_port(self):
+        return self.detector.get_visible_output_port()
+
+    def get_X_CT_output_port(self):
+        return self.detector.get_X_CT_measured_output_port()
+
+    def get_X_WC_output_port(self):
+        return self.pose.get_X_WC_output_port()
+
+
+def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
+                                     X_EC_true) -> RenderedCameraParts:
+    """The board of ``camera.model.target`` at ``target.X_WT`` in the scene graph (perception
+    and illustration roles), an ``RgbdSensor`` on the end-effector at the true X_EC with
+    ``camera.sensor``'s intrinsics, clipping and background, the ``TargetDetector`` on its colour
+    image, and the camera pose X_WC from the kinematics."""
+    from .systems.rendered_camera import add_target_geometry, mount_rendered_camera
+    model, sensor = scenario.camera.model, scenario.camera.sensor
+    target = model.parsed_target()
+    intrinsics = intrinsics_of(scenario)
+    add_target_geometry(arm.handles.scene_graph, target,
+                        transform_matrix(scenario.target.X_WT, "target.X_WT"))
+    bg = sensor.background
+    near, far = sensor.clipping_near, sensor.clipping_far
+    # The depth range (unused: colour only) kept inside the clipping range.
+    z_near, z_far = max(sensor.z_near, near), min(sensor.z_far, far)
+    if not z_near < z_far:
+        z_near, z_far = near, far
+    rendered = mount_rendered_camera(
+        builder, arm.handles.scene_graph, arm.handles.plant, scenario.arm.ee_frame, X_EC_true,
+        intrinsics, supersample=model.supersample, name=sensor.name or "camera",
+        clipping_near=near, clipping_far=far, z_near=z_near, z_far=z_far,
+        background=(bg.r(), bg.g(), bg.b()), fps=sensor.fps)
+    detector = builder.AddNamedSystem("target_detector", TargetDetector(
+        target, intrinsics, scenario.period, feature_ids=model.feature_ids_or_default(),
+        **LOOP_DETECT_OPTIONS))
+    builder.Connect(rendered.color_image_output_port(), detector.get_color_image_input_port())
+    pose = builder.AddNamedSystem("camera_pose", HandCameraPose(X_EC_true, scenario.period))
+    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), pose.get_X_WE_input_port())
+    recorder = None
+    if model.frames_to_save:
+        recorder = builder.AddNamedSystem("frame_recorder", FrameRecorder(
+            model.frames_to_save, scenario.period))
+        builder.Connect(rendered.color_image_output_port(),
+                        recorder.get_color_image_input_port())
+    return RenderedCameraParts(rendered=rendered, detector=detector, pose=pose,
+                               recorder=recorder, detect_options=dict(LOOP_DETECT_OPTIONS))
+
+
+def connect_detector_to_calibrator(scenario: Scenario, builder: DiagramBuilder,
+                                   camera: RenderedCameraParts, calibrator) -> None:
+    """The detector's ``found`` flag gates the calibrator (a frame without the board is
+    skipped); its covariance goes to the calibrator when ``camera.model.use_detector_covariance``
+    (the estimator then uses it instead of fixed sigmas)."""
+    builder.Connect(camera.detector.get_found_output_port(),
+                    calibrator.get_X_CT_valid_input_port())
+    if scenario.camera.model.use_detector_covariance:
+        builder.Connect(camera.detector.get_covariance_output_port(),
+                        calibrator.get_X_CT_covariance_input_port())
+
+
+def add_detector_loggers(builder: DiagramBuilder, camera: RenderedCameraParts,
+                         period: float) -> dict:
+    """Loggers of the detector's ``found``, ``reprojection_rms``, ``num_points`` and
+    ``covariance``."""
+    loggers = {}
+    for name, port in {"detector_found": camera.detector.get_found_output_port(),
+                       "reprojection_rms": camera.detector.get_reprojection_rms_output_port(),
+                       "detector_num_points": camera.detector.get_num_points_output_port(),
+                       "detector_covariance": camera.detector.get_covariance_output_port(),
+                       }.items():
+        logger = LogVectorOutput(port, builder, period)
+        logger.set_name(f"log_{name}")
+        loggers[name] = logger
+    return loggers
+
+
+@dataclass
+class SavedFrame:
+    """A rendered frame kept by ``camera.model.frames_to_save``: its index there, the requested
+    time and the sample time (s), the RGBA image and the detection on it (what the detector in
+    the loop computed: the same function, options and image)."""
+    index: int
+    requested_time: float
+    time: float
+    image: np.ndarray
+    detection: object
+
+    def drawn(self, intrinsics: CameraIntrinsics) -> np.ndarray:
+        """BGR uint8 image with the detection drawn (``vision.detection.draw_detection``)."""
+        from .vision.detection import draw_detection
+        return draw_detection(self.image, self.detection, intrinsics)
+
+
+def _saved_frames(scenario: Scenario, camera: RenderedCameraParts, context) -> list:
+    if camera.recorder is None:
+        return []
+    from .vision.detection import detect_target
+    detector = camera.detector
+    frames = []
+    for index, t, image in camera.recorder.frames(camera.recorder.GetMyContextFromRoot(context)):
+        detection = detect_target(image, detector.target, detector.intrinsics,
+                                  **camera.detect_options)
+        frames.append(SavedFrame(index, scenario.camera.model.frames_to_save[index], t, image,
+                                 detection))
+    return frames
+
+
+def _detector_diagnostics(loop, logs: dict, times) -> list[str]:
+    """Why a rendered run should not be trusted: the board lost at the end of the run."""
+    if not isinstance(loop.camera, RenderedCameraParts):
+        return []
+    found = logs["detector_found"].data()[0] > 0.5
+    if found[-1]:
+        return []
+    seen = np.flatnonzero(found)
+    last = f"last seen at t = {times[seen[-1]]:.3f} s" if seen.size else "never seen"
+    return [f"the detector does not find the board at the end of the run ({last}; "
+            f"found in {int(found.sum())} of {found.size} frames): the servo holds still "
+            "(zero command) and the calibrator skips those frames"]
+
+
+def _detector_results(scenario: Scenario, loop, logs: dict, context) -> dict:
+    """The ``ScenarioResult`` fields of a rendered camera's detector (empty otherwise)."""
+    if not isinstance(loop.camera, RenderedCameraParts):
+        return {}
+    return {"detector_found": logs["detector_found"].data()[0].copy(),
+            "reprojection_rms_px": logs["reprojection_rms"].data()[0].copy(),
+            "detector_num_points": logs["detector_num_points"].data()[0].copy(),
+            "detector_covariance": logs["detector_covariance"].data().T.reshape(-1, 6, 6),
+            "frames": _saved_frames(scenario, loop.camera, context)}
+
+
 def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
               camera) -> VisualServoController:
     """The IBVS controller (with its self-calibration prelude), fed by the camera's features
     and commanding the arm's driver."""
     servo = builder.AddNamedSystem("servo", VisualServoController(
-        intrinsics=intrinsics_of(scenario), p_TQ=np.asarray(scenario.target.points, dtype=float),
+        intrinsics=intrinsics_of(scenario), p_TQ=target_points_T(scenario),
         desired_features=desired_features(scenario), gain=scenario.servo.gain,
         period=scenario.period, self_calibration_motions=self_calibration_motions(scenario),
         max_angular_speed=scenario.servo.max_angular_speed,
@@ -200,13 +391,25 @@ def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
     return servo
 
 
+def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm):
+    """X_BE held from each camera trigger: a ``ZeroOrderHold`` for the point-feature camera
+    (which samples in the same discrete phase), a ``CameraTriggerSampler`` for a rendered one
+    (which samples in the unrestricted phase, where the detector renders its image)."""
+    if isinstance(scenario.camera.model, RenderedImages):
+        hold = CameraTriggerSampler(scenario.period, 12)
+    else:
+        hold = ZeroOrderHold(scenario.period, 12)
+    sampler = builder.AddNamedSystem("robot_pose_sampler", hold)
+    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
+    return sampler
+
+
 def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
-                   servo) -> tuple[HandEyeCalibrator, ZeroOrderHold]:
+                   servo) -> tuple[HandEyeCalibrator, object]:
     """The calibrator, fed by the robot pose sampled on the camera's clock (so that (X_BE, X_CT)
     pairs are synchronous), the camera's measurement and the servo's phase."""
     period = scenario.period
-    sampler = builder.AddNamedSystem("robot_pose_sampler", ZeroOrderHold(period, 12))
-    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
+    sampler = add_robot_pose_sampler(scenario, builder, arm)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
@@ -243,6 +446,8 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     camera = add_camera(scenario, builder, arm, X_EC_true)
     servo = add_servo(scenario, builder, arm, camera)
     calibrator, sampler = add_calibrator(scenario, builder, arm, camera, servo)
+    if isinstance(camera, RenderedCameraParts):
+        connect_detector_to_calibrator(scenario, builder, camera, calibrator)
     if feedback:
         builder.Connect(calibrator.get_X_CE_output_port(), servo.get_X_CE_input_port())
     else:
@@ -278,13 +483,15 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             logger = LogVectorOutput(port, builder, scenario.period)
             logger.set_name(f"log_{name}")
             loggers[name] = logger
+        if isinstance(camera, RenderedCameraParts):
+            loggers.update(add_detector_loggers(builder, camera, scenario.period))
 
     if meshcat is not None:
         from .systems.visualization import add_meshcat_visualization
         add_meshcat_visualization(
             builder, arm.handles.scene_graph, meshcat,
             transform_matrix(scenario.target.X_WT, "target.X_WT"),
-            np.asarray(scenario.target.points, dtype=float), scenario.period,
+            target_points_T(scenario), scenario.period,
             camera.get_X_WC_output_port(), arm.ee_sensor.get_X_WE_output_port(),
             calibrator.get_X_EC_output_port())
 
@@ -305,7 +512,7 @@ def _check_start_visibility(scenario: Scenario, arm: _Arm, X_EC) -> None:
     X_WE = plant.CalcRelativeTransform(context, plant.world_frame(),
                                        plant.GetFrameByName(scenario.arm.ee_frame)).GetAsMatrix4()
     _, in_front, in_image = target_visibility(
-        intrinsics_of(scenario), X_WE, X_EC, np.asarray(scenario.target.points, dtype=float),
+        intrinsics_of(scenario), X_WE, X_EC, target_points_T(scenario),
         transform_matrix(scenario.target.X_WT, "target.X_WT"))
     visible = in_front & in_image
     if not np.all(visible):
@@ -346,6 +553,18 @@ class ScenarioResult:
     diagnostics: list = field(default_factory=list)
     #: The run was stopped (Ctrl-C) before ``scenario.duration``.
     interrupted: bool = False
+    #: (K, 6) the servo's command [ω (rad/s); v (m/s)] in E.
+    V_WE_E_command: np.ndarray | None = None
+    #: Rendered camera only (None otherwise), per camera sample: the detector's found flag (1/0),
+    #: the reprojection RMS (px) and the number of board points of its last found frame / this
+    #: frame, and the frames kept by ``camera.model.frames_to_save`` (``SavedFrame``).
+    detector_found: np.ndarray | None = None
+    reprojection_rms_px: np.ndarray | None = None
+    detector_num_points: np.ndarray | None = None
+    #: (K, 6, 6) the detector's covariance of X_CT_samples ([δθ (rad); δt (m)], of the last
+    #: found frame).
+    detector_covariance: np.ndarray | None = None
+    frames: list = field(default_factory=list)
 
     @property
     def real_time_factor(self) -> float:
@@ -375,7 +594,20 @@ class ScenarioResult:
             "real_time_factor": self.real_time_factor,
             "diagnostics": list(self.diagnostics),
             "interrupted": self.interrupted,
+            **self._detector_summary(),
         }
+
+    def _detector_summary(self) -> dict:
+        """Rendered camera only: how often the detector found the board, and its reprojection
+        RMS (px) over the frames where it did (log 0, the initialization, left out: log 1
+        repeats the frame at t = 0)."""
+        if self.detector_found is None:
+            return {}
+        found = self.detector_found[1:] > 0.5
+        rms = self.reprojection_rms_px[1:][found]
+        return {"detector_frames": int(found.size), "detector_found_frames": int(found.sum()),
+                "reprojection_rms_px_median": float(np.median(rms)) if rms.size else None,
+                "reprojection_rms_px_max": float(rms.max()) if rms.size else None}
 
 
 def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
@@ -457,7 +689,9 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
         X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),
         servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall,
-        calibrator_mode=mode, diagnostics=diagnostics)
+        calibrator_mode=mode, diagnostics=diagnostics + _detector_diagnostics(loop, logs, times),
+        V_WE_E_command=data["V_WE_E_command"],
+        **_detector_results(scenario, loop, logs, context))
 
 
 @dataclass

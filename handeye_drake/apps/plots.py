@@ -29,7 +29,8 @@ def plot_feature_error(result, path) -> Path:
     ax.set_ylabel("RMS feature error (px)")
     ax.set_title("Visual servo: ‖s − s*‖ (RMS over visible points)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:  # a run too short to reach the servo has no line
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

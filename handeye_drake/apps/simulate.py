@@ -6,7 +6,9 @@ scenario``: the default scenario as YAML, a template to edit.
                            [--force] [--no-progress]
 
 Writes into ``--out`` (default ``out/simulate``): ``summary.json``, three PNG plots, the
-diagram (``diagram.dot``/``.svg``) and a Meshcat replay (``replay.html``).
+diagram (``diagram.dot``/``.svg``), a Meshcat replay (``replay.html``) and, for a rendered camera
+(``camera.model: !RenderedImages``), the frames of ``camera.model.frames_to_save`` with the
+detection drawn (``frames/frame_NNN.png``).
 """
 
 from __future__ import annotations
@@ -73,6 +75,22 @@ def _quiet_meshcat():
         drake_log.setLevel(level)
 
 
+def write_saved_frames(result, out) -> list:
+    """The rendered frames kept by ``camera.model.frames_to_save``, with the detection drawn,
+    as ``frames/frame_NNN.png`` (NNN: the index in frames_to_save)."""
+    import cv2
+
+    from ..simulation import intrinsics_of
+    intrinsics = intrinsics_of(result.scenario)
+    written = []
+    for frame in result.frames:
+        path = out.path(f"frames/frame_{frame.index:03d}.png")
+        if not cv2.imwrite(str(path), frame.drawn(intrinsics)):
+            raise ValueError(f"--out {out.root}: could not write {path}")
+        written.append(path)
+    return written
+
+
 def run_simulate(args) -> int:
     from ..scenario import load_scenario
     from ..simulation import build_diagram, run_scenario
@@ -100,6 +118,7 @@ def run_simulate(args) -> int:
         result = run_scenario(scenario, feedback=not args.no_feedback, meshcat=meshcat,
                               progress=advance)
     written = write_run_plots(result, out.root)
+    written += write_saved_frames(result, out)
     written += render_diagram(build_diagram(scenario, with_loggers=False).diagram,
                               out.root / "diagram")
     if html is not None:
@@ -126,6 +145,17 @@ def run_simulate(args) -> int:
           f" deg, translation {100 * summary['final_translation_error_rel']:.2f} % "
           f"({summary['filter_updates']} updates; 1σ {max(std):.3f} deg)")
     print(f"  final feature error: {summary['final_feature_error_px']:.3f} px (RMS)")
+    if "detector_frames" in summary:
+        rms = summary["reprojection_rms_px_median"]
+        print(f"  detector: board found in {summary['detector_found_frames']} of "
+              f"{summary['detector_frames']} frames"
+              + (f", reprojection RMS {rms:.3f} px (median)" if rms is not None else ""))
+        saved = {f.index for f in result.frames}
+        missed = [t for i, t in enumerate(scenario.camera.model.frames_to_save)
+                  if i not in saved]
+        if missed:
+            print(f"  frames_to_save: no frame at {', '.join(f'{t:g}' for t in missed)} s "
+                  f"(the run ended at {result.sim_time:g} s)")
     print(f"  simulated {summary['simulated_time_s']:.2f} s in {summary['wall_time_s']:.2f} s wall "
           f"(real-time factor {summary['real_time_factor']:.2f})"
           + (" — INTERRUPTED, results so far saved" if result.interrupted else ""))

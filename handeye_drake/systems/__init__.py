@@ -9,21 +9,27 @@
                         camera_config, RenderedCamera (functions: RgbdSensor + textured target)
     image_downsampler.py ImageAreaDownsampler (supersampling of rendered images)
     target_detector.py TargetDetector
+    camera_pose.py   HandCameraPose (true X_WC of a rendered camera, for logs and Meshcat)
+    trigger_sampler.py CameraTriggerSampler (robot pose held from a rendered camera's trigger)
+    frame_recorder.py FrameRecorder (a few rendered frames kept for pictures)
 """
 
 from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor, add_arm,
                   make_control_plant)
 from .calibrator import HandEyeCalibrator
 from .camera import HandEyeCamera
+from .camera_pose import HandCameraPose
+from .frame_recorder import FrameRecorder
 from .image_downsampler import ImageAreaDownsampler
 from .motion_source import PaperMotionSource
 from .rendered_camera import (RenderedCamera, add_rendered_camera, add_target_geometry,
                               camera_config, mount_rendered_camera)
 from .servo import SelfCalibrationMotion, VisualServoController
 from .target_detector import TargetDetector
+from .trigger_sampler import CameraTriggerSampler
 
-__all__ = ["DifferentialIkDriver", "EndEffectorPoseSensor", "HandEyeCalibrator",
-           "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
+__all__ = ["CameraTriggerSampler", "DifferentialIkDriver", "EndEffectorPoseSensor",
+           "FrameRecorder", "HandCameraPose", "HandEyeCalibrator", "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
            "SelfCalibrationMotion", "TargetDetector", "UR5E_HOME_Q", "UR5E_URDF",
            "VisualServoController", "add_arm", "add_rendered_camera", "add_target_geometry",
            "camera_config", "make_control_plant", "mount_rendered_camera"]
