@@ -3,7 +3,8 @@ no application imports this module back.
 
     handeye-drake simulate    closed-loop simulation of a scenario
     handeye-drake scenario    the default scenario as YAML
-    handeye-drake calibrate   hand-eye calibration from recorded robot and camera poses
+    handeye-drake calibrate   hand-eye calibration from recorded poses, images or a bag
+    handeye-drake target      a calibration target to print, at true scale
     handeye-drake plan        the next robot poses to record (D-optimal design)
     handeye-drake reproduce   the paper's experiments (Figures 2–10)
     handeye-drake sweep       Monte Carlo runs over settings × seeds (local processes or Dask)
@@ -18,9 +19,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import accuracy, calibrate, plan, reproduce, simulate, speed, sweep
+from . import accuracy, calibrate, plan, reproduce, simulate, speed, sweep, target
 
-APPLICATIONS = (simulate, calibrate, plan, reproduce, sweep)
+APPLICATIONS = (simulate, calibrate, target, plan, reproduce, sweep)
 #: Sub-commands of ``handeye-drake benchmark``.
 BENCHMARKS = (accuracy, speed)
 

@@ -759,6 +759,22 @@ def _pdf(target, margin: float, caption: str, path: Path) -> None:
     fig.savefig(path, format="pdf")
 
 
+def object_points_description(target) -> str:
+    """Where the target frame T is on the printed sheet (see the module docstring)."""
+    target = validate_target(target)
+    axes = "x to the right along the columns, y down along the rows, z into the board"
+    if isinstance(target, ChessboardTarget):
+        where = ("origin at the first inner corner (diagonally next to the black corner square "
+                 "at the top left)")
+    elif isinstance(target, CharucoTarget):
+        where = "origin at the top-left outer corner of the board"
+    elif isinstance(target, AprilTagTarget):
+        where = "origin at the tag centre"
+    else:
+        where = "origin at the top-left corner of the top-left tag"
+    return f"{where}; {axes} (as printed)"
+
+
 def write_printable(target, path, dpi: float = 300, margin: float = 0.01) -> list[Path]:
     """Writes the target at true scale for printing: ``path`` as a PNG whose pHYs chunk carries
     ``dpi``, plus an SVG and a PDF (same stem) sized in millimetres. Each has a white ``margin``
@@ -798,6 +814,7 @@ __all__ = [
     "dictionary_names",
     "format_target",
     "get_dictionary",
+    "object_points_description",
     "grid_board",
     "object_points",
     "parse_target",

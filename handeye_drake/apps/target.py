@@ -1,0 +1,71 @@
+"""``handeye-drake target``: a calibration target to print, at true scale.
+
+Writes the pattern that ``calibrate --target SPEC`` (and the rendered camera) detects, as a PNG
+whose metadata carries the resolution, plus an SVG and a PDF sized in millimetres. A caption under
+the pattern repeats the spec and the sizes to measure on the print: a printer that scales the page
+changes them, and the calibration's translations scale with them.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .outputs import check_output_file
+
+
+def run_target(args) -> int:
+    from ..vision.targets import (object_points_description, parse_target, target_caption,
+                                  write_printable)
+    target = parse_target(args.spec)
+    png = Path(args.out)
+    if png.suffix.lower() != ".png":
+        raise ValueError(f"--out {args.out}: expected a .png file name (the .svg and .pdf are "
+                         "written beside it)")
+    for p in (png, png.with_suffix(".svg"), png.with_suffix(".pdf")):
+        check_output_file(p, "--out", args.force)
+    written = write_printable(target, png, dpi=args.dpi, margin=args.margin)
+    print(f"target: {target_caption(target)}")
+    print(f"frame T: {object_points_description(target)}")
+    print("wrote: " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def _non_negative(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number ≥ 0, got {text!r}") from None
+    if not (0 <= v < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a number ≥ 0, got {text!r}")
+    return v
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Adds the ``target`` subcommand to an argparse ``subparsers`` object."""
+    p = subparsers.add_parser(
+        "target", help="write a calibration target to print (PNG, SVG, PDF at true scale)",
+        description="Write the calibration target SPEC at true scale: a PNG (with its dpi), an "
+                    "SVG and a PDF beside it. SPEC: chessboard:COLSxROWS:SQUARE (inner corners), "
+                    "charuco:SQUARESXxSQUARESY:SQUARE:MARKER:DICT[:legacy], "
+                    "apriltag:FAMILY:SIZE[:ID], aprilgrid:FAMILY:COLSxROWS:SIZE:SPACING[:FIRST_ID]"
+                    "; sizes in metres.")
+    p.add_argument("spec", metavar="SPEC", help="the target, e.g. chessboard:9x6:0.0236")
+    p.add_argument("--out", required=True, metavar="FILE.png",
+                   help="the PNG to write (FILE.svg and FILE.pdf are written beside it)")
+    p.add_argument("--dpi", type=_positive, default=300.0, help="PNG resolution (default 300)")
+    p.add_argument("--margin", type=_non_negative, default=0.01, metavar="METRES",
+                   help="white margin around the pattern (default 0.01)")
+    p.add_argument("--force", action="store_true", help="overwrite existing files")
+    p.set_defaults(func=run_target)
+    return p

@@ -1,0 +1,44 @@
+"""``handeye-drake target``: the printable target, and its refusals."""
+
+import cv2
+import numpy as np
+
+from handeye_drake.apps.cli import main
+from handeye_drake.vision.detection import detect_target
+from handeye_drake.vision.intrinsics import parse_intrinsics_spec
+from handeye_drake.vision.targets import parse_target
+
+
+def test_the_printed_chessboard_is_detected_at_its_true_scale(tmp_path, capsys):
+    png = tmp_path / "board.png"
+    assert main(["target", "chessboard:9x6:0.0236", "--out", str(png), "--dpi", "200"]) == 0
+    out = capsys.readouterr().out
+    assert "square 23.6 mm" in out and "origin at the first inner corner" in out
+    assert png.with_suffix(".svg").exists() and png.with_suffix(".pdf").exists()
+    image = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE)
+    # Seen by a fronto-parallel camera 1 m away with f = ppm pixels, one metre on the paper is
+    # ppm pixels: the detected pose puts the board 1 m away, its corners 23.6 mm apart.
+    ppm = 200 / 0.0254
+    h, w = image.shape
+    K = parse_intrinsics_spec(f"{ppm},{ppm},{(w - 1) / 2},{(h - 1) / 2}", w, h)
+    det = detect_target(image, parse_target("chessboard:9x6:0.0236"), K)
+    assert det.found and len(det.ids) == 54
+    assert abs(det.X_CT[2, 3] - 1.0) < 2e-3
+    assert np.allclose(det.X_CT[:3, 2], [0, 0, 1], atol=1e-3)  # z into the board
+
+
+def test_refusals_are_one_line(tmp_path, capsys):
+    png = tmp_path / "b.png"
+    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(png)]) == 0
+    capsys.readouterr()
+    for argv, message in (
+            (["apriltag:36h11:0.048:10", "--out", str(png)], "exists; not overwriting it"),
+            (["chessboard:9", "--out", str(tmp_path / "c.png")], "target spec 'chessboard:9'"),
+            (["chessboard:9x6:0.02", "--out", str(tmp_path / "no" / "c.png")], "does not exist"),
+            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c.jpg")], "expected a .png"),
+            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c.png"), "--dpi", "-3"],
+             "--dpi: expected a positive number")):
+        assert main(["target", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
+    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(png), "--force"]) == 0
