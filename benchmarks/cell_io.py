@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_bags import (CAMERA_LATENCY, EPOCH_NS, FORMATS, robot_truth, simulate,  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from tests.recorded.test_bags import (CAMERA_LATENCY, EPOCH_NS, FORMATS, robot_truth, simulate,  # noqa: E402
                        write_recording)
-from test_exports import CASES, _flags_to_transform, _plant_with, _robot_urdf  # noqa: E402
+from tests.recorded.test_exports import CASES, _flags_to_transform, _plant_with, _robot_urdf  # noqa: E402
 
 from pydrake.common.yaml import yaml_load_typed  # noqa: E402
 from pydrake.multibody.parsing import (LoadModelDirectivesFromString, Parser,  # noqa: E402

@@ -31,11 +31,11 @@ import time
 import numpy as np
 
 from handeye_drake.estimation.ml import refine_ml_poses
-from handeye_drake.estimation.manifold import inverse_tangent_jacobian, retract_pose
 from handeye_drake.estimation.observability import information_matrix
 from handeye_drake.estimation.planning import plan_next_poses, sample_candidate_poses
-from handeye_drake.estimation.se3 import (inverse, make_transform, rotation_exp,
-                                          rotation_from_rpy, rotation_log)
+from handeye_drake.estimation.se3 import (inverse, inverse_tangent_jacobian, make_transform,
+                                          retract_pose, rotation_exp, rotation_from_rpy,
+                                          rotation_log)
 from handeye_drake.vision.camera_model import CameraIntrinsics, apply_pose_noise
 
 X_EC = make_transform(rotation_from_rpy(np.radians([1.5, -2.0, 90.0])), [0.045, -0.012, 0.068])

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_opencv_crosscheck import CV_METHODS, errors, make_dataset, opencv_X_EC  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from tests.estimation.test_solvers_vs_opencv import (CV_METHODS, errors, make_dataset,  # noqa: E402
+                                                     opencv_X_EC)
 
 from handeye_drake import calibrate_hand_eye  # noqa: E402
 
