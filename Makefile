@@ -34,6 +34,7 @@ run: setup
 diagrams: setup
 	$(BIN)/python diagrams/closed_loop.py
 	$(BIN)/python diagrams/calibrator_alone.py
+	$(BIN)/python diagrams/rendered_loop.py
 
 test: setup
 	$(BIN)/python -m pytest

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from .outputs import prepare_output_dir
-from ..estimation.observability import (MODES, HOLDER_FRAME, UnobservableError,
+from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
                                         observability_report, parse_fixed, pose_residuals,
                                         recording_observability, refine_ml_poses_fixed)
 from ..estimation.planning import plan_next_poses, sample_candidate_poses
@@ -144,7 +144,7 @@ def _estimate_from_recording(args, fixed, mode):
 
 def run_plan(args) -> int:
     """Runs ``plan`` from parsed arguments; raises ValueError on bad input."""
-    mode = args.mode
+    mode = args.mode.replace("-", "_")
     H = HOLDER_FRAME[mode]
     fixed = parse_fixed(args.fix) if args.fix else {}
     out = prepare_output_dir(args.out, "plan", args.force)
@@ -307,8 +307,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--fix", metavar="NAME=VALUE,…",
                    help="hand-eye components known (tx,ty,tz in m or tx_mm…, roll,pitch,yaw in "
                         "rad or roll_deg…, of X_EC / X_BC): e.g. tz=0.052 for a SCARA")
-    p.add_argument("--mode", choices=MODES, default="eye_in_hand",
-                   help="eye_in_hand (camera on the flange, default) or eye_to_hand")
+    p.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
+                   type=lambda s: s.replace("_", "-"),
+                   help="eye-in-hand (camera on the flange, default) or eye-to-hand, as for "
+                        "calibrate")
     p.add_argument("--n", type=int, default=5, help="number of poses to suggest (default 5)")
     p.add_argument("--out", default="out/plan", metavar="DIR",
                    help="output directory (default out/plan); an existing one must be empty or "

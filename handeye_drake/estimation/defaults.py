@@ -50,6 +50,13 @@ MAX_CONSECUTIVE_REJECTIONS = 5
 #: Innovations larger than this many standard deviations (√(NIS / dof)) are rejected by every
 #: filter, gate or no gate: no mis-tuning explains them, only a wrong measurement.
 GROSS_ERROR_SIGMAS = 1000.0
+#: The filters' consistency test (``EstimatorBase.consistency_message``): after this many fused
+#: measurements, a mean NIS above its 99.9 % bound and this many times its expectation (the
+#: measurement dimension) means the reported σ are too small. The factor leaves room for the
+#: mild model errors of a matched filter (linearization, correlated samples) while catching a
+#: wrong noise model (e.g. a pose filter fed visual-odometry poses: mean NIS ≈ 5× expectation).
+NIS_MIN_UPDATES = 30
+NIS_TOLERANCE = 1.5
 #: Standard deviation (deg) above which a direction of the hand-eye estimate counts as not
 #: determined by the motions seen so far (see ``excitation``).
 UNOBSERVABLE_STD_DEG = 5.0

@@ -162,16 +162,27 @@ class EstimatorBase:
         self._consecutive = 0
         self._num_inflations = 0
         self._last_nis = math.nan
+        self._nis_sum = 0.0
+        self._nis_count = 0
         self._excitation = Excitation()
 
     _COUNTERS = VectorLayout(num_updates=1, num_rejected=1, num_skipped=1, consecutive=1,
-                             num_inflations=1, last_nis=1, excitation=9)
+                             num_inflations=1, last_nis=1, nis_sum=1, nis_count=1, excitation=9)
+    #: Dimension of one measurement (the χ² degrees of freedom of its NIS); set by subclasses.
+    _MEASUREMENT_DOF = 6
+
+    def _record_nis(self, nis: float) -> None:
+        """Adds the NIS of a fused measurement to the consistency test of ``diagnostics``."""
+        if math.isfinite(nis):
+            self._nis_sum += float(nis)
+            self._nis_count += 1
 
     def _counters_vector(self) -> np.ndarray:
         return self._COUNTERS.pack(num_updates=self._num_updates,
                                    num_rejected=self._num_rejected,
                                    num_skipped=self._num_skipped, consecutive=self._consecutive,
                                    num_inflations=self._num_inflations, last_nis=self._last_nis,
+                                   nis_sum=self._nis_sum, nis_count=self._nis_count,
                                    excitation=self._excitation.S)
 
     def _set_counters(self, v) -> None:
@@ -182,6 +193,8 @@ class EstimatorBase:
         self._consecutive = int(c["consecutive"][0])
         self._num_inflations = int(c["num_inflations"][0])
         self._last_nis = float(c["last_nis"][0])
+        self._nis_sum = float(c["nis_sum"][0])
+        self._nis_count = int(c["nis_count"][0])
         self._excitation = Excitation(c["excitation"])
 
     # ------------------------------------------------------------------------ the estimate
@@ -267,7 +280,34 @@ class EstimatorBase:
             out.append(f"the filter rejected {self._num_rejected} of {seen} measurements: the "
                        "data does not fit its noise model (wrong sigmas, wrong frames, or a wrong "
                        "start)")
+        message = self.consistency_message()
+        if message:
+            out.append(message)
         return out
+
+    @property
+    def mean_nis(self) -> float:
+        """Mean normalized innovation squared of the fused measurements (nan before any); its
+        expectation is the measurement dimension when the noise model is right."""
+        return self._nis_sum / self._nis_count if self._nis_count else math.nan
+
+    def consistency_message(self) -> str:
+        """Non-empty when the fused measurements do not fit the noise model: their mean NIS is
+        above both its 99.9 % bound and ``defaults.NIS_TOLERANCE`` × its expectation, over at
+        least ``defaults.NIS_MIN_UPDATES`` updates. The covariance — the σ reported — is then too
+        small."""
+        n, m = self._nis_count, self._MEASUREMENT_DOF
+        if n < defaults.NIS_MIN_UPDATES:
+            return ""
+        from scipy.stats import chi2
+        bound = max(float(chi2.ppf(0.999, m * n)) / n, defaults.NIS_TOLERANCE * m)
+        mean = self.mean_nis
+        if mean <= bound:
+            return ""
+        return (f"the measurements do not fit the noise model: their mean NIS is {mean:.3g} for "
+                f"{m}-dimensional measurements over {n} updates (expected ≈ {m}, bound "
+                f"{bound:.3g}), so the σ reported are too small — check the noise settings "
+                "(their size, pose noise vs motion noise), the frames and the synchronization")
 
 
 def rotation_vector_between(R0, R1) -> np.ndarray:

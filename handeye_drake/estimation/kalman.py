@@ -162,6 +162,7 @@ class HandEyeKalmanFilter(EstimatorBase):
     in the paper) or the gross-error bound ``defaults.GROSS_ERROR_SIGMAS``.
     """
 
+    _MEASUREMENT_DOF = 12
     _LAYOUT = VectorLayout(x=12, P=144, prev=24, has_prev=1, counters=EstimatorBase._COUNTERS.size)
 
     def __init__(self, config: PaperFilter, X_CE_init, covariance=None):
@@ -222,6 +223,7 @@ class HandEyeKalmanFilter(EstimatorBase):
         self._x, self._P = x, P
         self._num_updates += 1
         self._consecutive = 0
+        self._record_nis(nis)
         self._excitation.add(rotation_log(B[:3, :3]))
         return True
 

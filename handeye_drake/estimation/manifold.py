@@ -260,6 +260,7 @@ class _ErrorStateFilter(EstimatorBase):
         self._num_updates += 1
         self._consecutive = 0
         self._num_inflations += int(inflated)
+        self._record_nis(nis)
         return True
 
     @property

@@ -368,3 +368,32 @@ def test_any_settings_value_is_accepted_or_a_value_error_naming_the_field(kind, 
         assert f"{kind.__name__}.{field}" in str(e), str(e)
     else:
         assert np.all(np.isfinite(est.to_vector()[:12]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_wrong_noise_model_is_reported_not_trusted(seed):
+    """Poses whose error accumulates (visual odometry: each pose = the previous one + a noisy
+    motion) fed to the pose filter, which assumes independent pose noise of the same size: its
+    σ end far too small, and its consistency test (mean NIS) says so. With independent pose
+    noise, the same filter passes the test."""
+    from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+    X_EC = make_transform(rotation_exp([0.1, -0.2, 1.5]), [0.045, -0.012, 0.068])
+    X_BT = make_transform(rotation_exp([np.pi, 0, 0]), [0.5, 0.0, 0.0])
+    sr, st = 0.002, 0.001
+    messages = {}
+    for accumulating in (False, True):
+        rng = np.random.default_rng(seed)
+        drift = np.eye(4)
+        f = HandEyeTargetFilter(TargetFilter(rotation_sigma=sr, translation_sigma=st),
+                                inverse(X_EC))
+        for _ in range(200):
+            X_BE = make_transform(rotation_exp(0.3 * rng.normal(size=3)),
+                                  [0.5, 0.0, 0.45] + 0.05 * rng.normal(size=3))
+            noise = make_transform(rotation_exp(sr * rng.normal(size=3)), st * rng.normal(size=3))
+            drift = noise @ drift if accumulating else noise
+            f.update(X_BE, drift @ inverse(X_BE @ X_EC) @ X_BT)
+        messages[accumulating] = f.consistency_message()
+        assert (f.mean_nis > 9.0) == accumulating, f.mean_nis
+    assert messages[False] == ""
+    assert "do not fit the noise model" in messages[True]
+    assert "σ reported are too small" in messages[True]

@@ -597,7 +597,10 @@ def _explain_degenerate(error: ValueError, X_R, X_CT, mode, fixed) -> ValueError
         return error
     if not report.messages:
         return error
-    return ValueError(f"{text}; " + "; ".join(report.messages))
+    # The classical solvers' own account (AX = XB leaves the rotation about the axis free) is
+    # superseded by the analysis of the pose fit, which also uses the target's fixed pose.
+    head = text.split("; the hand-eye rotation about that axis")[0]
+    return ValueError(f"{head}; " + "; ".join(report.messages))
 
 
 def tangent_std(covariance) -> tuple[np.ndarray, np.ndarray]:
