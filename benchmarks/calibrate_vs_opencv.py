@@ -338,7 +338,8 @@ def simulated(seeds: int, log=print) -> dict:
 
 def table(result: dict) -> str:
     lines = ["| method | held-out n | rot median (°) | rot RMS (°) | trans median (mm) | "
-             "trans RMS (mm) | error vs truth rot (°) / trans (mm) |", "|---|---|---|---|---|---|---|"]
+             "trans RMS (mm) | error vs truth rot (°) / trans (mm) |",
+             "|---|---|---|---|---|---|---|"]
     for k, v in result["rows"].items():
         if v.get("failed"):
             lines.append(f"| {k} | failed (cv2.error) | | | | | |")
