@@ -1,6 +1,7 @@
 """``handeye-drake benchmark speed``: every cost as a ratio against a reference measured beside it.
 
     handeye-drake benchmark speed [--repeats N] [--sections ...] [--calibrate-sizes N ...]
+                                  [--rendered-duration S]
                                   [--json FILE]
 
 Each figure is a ratio of two timings taken in the same run, interleaved (A, B, B, A, ...), as
@@ -23,8 +24,10 @@ Sections (``--sections``):
   C++ ``DifferentialInverseKinematicsIntegrator`` (same time step, same joint limits) toward a
   fixed pose under an end-effector speed limit — a constant twist — and nothing else. Target
   ≤ 1.3×; both real-time factors are printed.
-- ``rendered``: the rendered-camera loop against rendering and detecting the same frames alone
-  (target ≤ 1.3×); "not available yet" until ``camera.model`` has a rendered variant.
+- ``rendered``: the rendered-camera loop (``run_scenario`` of ``scenarios/rendered.yaml``
+  shortened to ``--rendered-duration`` s) against rendering the same frames with the same
+  ``RgbdSensor`` at the same arm poses and running ``detect_target`` on them, alone (the
+  detections must equal the loop's). Target ≤ 1.3×; per-frame render, detect and rest.
 - ``calibrate``: ``handeye-drake calibrate`` (the whole command, in this process) on recordings
   of 10², 10³, 10⁴, 10⁵ camera samples made with ``recorded.example``'s pose model: time per
   pair and the growth exponent of the wall time (log-log fit), beside OpenCV's
@@ -593,18 +596,188 @@ def rendered_model_type():
     return None
 
 
-def rendered_section(repeats: int, log=print) -> list[dict]:
-    """The rendered loop against rendering and detecting the same frames alone (target ≤ 1.3×).
-    To fill in with the rendered camera: time ``run_scenario`` of a scenario whose
-    ``camera.model`` is the rendered variant, against a loop that renders (the same
-    ``RgbdSensor``, same poses) and runs the detector on the same number of frames."""
+#: The rendered scenario the section times (the repository's ``scenarios/rendered.yaml``).
+RENDERED_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "rendered.yaml"
+#: Simulated time (s) of the rendered loop timed: its two self-calibration motions and the
+#: start of the servo, 121 frames at 30 Hz.
+RENDERED_DURATION = 4.0
+
+
+def rendered_scenario(path=None, duration: float = RENDERED_DURATION):
+    """``scenarios/rendered.yaml`` (or ``path``) shortened to ``duration`` s, with no frames
+    saved (``frames_to_save`` copies images for the output, it is not part of the loop)."""
+    from ..scenario import load_scenario
+    s = load_scenario(RENDERED_SCENARIO if path is None else path)
+    s.duration = float(duration)
+    s.camera.model.frames_to_save = []
+    return s.validate()
+
+
+def arm_positions_reaching(plant, base_frame: str, ee_frame: str, X_BE, q0,
+                           tolerance: float = 1e-12, max_iterations: int = 30) -> np.ndarray:
+    """(K, n) joint positions whose forward kinematics give each X_BE[k] (end-effector in
+    base), by Newton steps on the pose error from the previous frame's solution (``q0`` for the
+    first): consecutive frames of a run are close, so each solution stays on the branch the
+    arm was on. Raises AssertionError when a pose is not reached to ``tolerance`` (m, rad)."""
+    from pydrake.multibody.tree import JacobianWrtVariable
+
+    from ..estimation.se3 import rotation_log
+    context = plant.CreateDefaultContext()
+    frame_B, frame_E = plant.GetFrameByName(base_frame), plant.GetFrameByName(ee_frame)
+    q = np.array(q0, dtype=float)
+    out = []
+    for k, X in enumerate(X_BE):
+        for _ in range(max_iterations):
+            plant.SetPositions(context, q)
+            X_now = plant.CalcRelativeTransform(context, frame_B, frame_E).GetAsMatrix4()
+            error = np.concatenate([rotation_log(X[:3, :3] @ X_now[:3, :3].T),
+                                    X[:3, 3] - X_now[:3, 3]])
+            if np.abs(error).max() <= tolerance:
+                break
+            J = plant.CalcJacobianSpatialVelocity(context, JacobianWrtVariable.kQDot, frame_E,
+                                                  np.zeros(3), frame_B, frame_B)
+            q = q + np.linalg.lstsq(J, error, rcond=None)[0]
+        else:
+            raise AssertionError(f"frame {k}: the arm's pose was not reached (error "
+                                 f"{np.abs(error).max():.3g})")
+        out.append(q.copy())
+    return np.array(out)
+
+
+def rendered_reference(scenario):
+    """The loop's arm and rendered camera alone: the same systems (``add_arm_with_driver``,
+    ``add_rendered_camera_and_detector``: plant, scene graph, board, ``RgbdSensor``) built into a
+    diagram that is never simulated. Returns ``run(Q) -> (seconds, (render s, detect s,
+    detections))``: for each row of Q the arm's positions are set, the colour image port is
+    evaluated (one render) and ``detect_target`` runs on it with the loop's options, exactly as
+    ``TargetDetector`` does (grey conversion included)."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from ..simulation import (add_arm_with_driver, add_rendered_camera_and_detector,
+                              camera_pose_on_hand)
+    from ..vision.detection import as_grey_image, detect_target
+
+    builder = DiagramBuilder()
+    arm = add_arm_with_driver(scenario, builder)
+    parts = add_rendered_camera_and_detector(scenario, builder, arm,
+                                             camera_pose_on_hand(scenario, arm.control_plant))
+    diagram = builder.Build()
+    plant, port = arm.handles.plant, parts.rendered.color_image_output_port()
+    camera_system = port.get_system()
+    target, intrinsics = parts.detector.target, parts.detector.intrinsics
+    options = parts.detect_options
+
+    def run(Q):
+        context = diagram.CreateDefaultContext()  # (as the Simulator's, made before timing)
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        camera_context = camera_system.GetMyContextFromRoot(context)
+        render = detect = 0.0
+        detections = []
+        start = time.perf_counter()
+        for q in Q:
+            plant.SetPositions(plant_context, q)
+            t0 = time.perf_counter()
+            image = port.Eval(camera_context)
+            t1 = time.perf_counter()
+            detections.append(detect_target(as_grey_image(image.data), target, intrinsics,
+                                             **options))
+            t2 = time.perf_counter()
+            render += t1 - t0
+            detect += t2 - t1
+        return time.perf_counter() - start, (render, detect, detections)
+
+    return run
+
+
+def check_same_detections(detections, found, X_CT, tolerance: float = 1e-9) -> float:
+    """The reference's detections against the loop's log (found flags per frame; X_CT, the
+    last found pose, on found frames): AssertionError unless they agree. Returns the largest
+    difference of the X_CT entries (rotation entries and metres)."""
+    found = np.asarray(found) > 0.5
+    ours = np.array([bool(d.found) for d in detections])
+    if ours.shape != found.shape or np.any(ours != found):
+        where = (np.flatnonzero(ours != found).tolist() if ours.shape == found.shape
+                 else f"{ours.size} frames vs {found.size}")
+        raise AssertionError(f"reference and loop disagree on where the target was found: "
+                             f"{where}")
+    diff = max((float(np.abs(d.X_CT - X).max()) for d, X, f in zip(detections, X_CT, found) if f),
+               default=0.0)
+    if not diff <= tolerance:
+        raise AssertionError(f"reference and loop disagree on X_CT: {diff:.3g} > {tolerance:g}")
+    return diff
+
+
+def rendered_section(repeats: int, log=print, duration: float = RENDERED_DURATION,
+                     scenario_path=None) -> list[dict]:
+    """The rendered loop (``run_scenario`` of ``scenarios/rendered.yaml`` shortened to
+    ``duration``: arm, rendered camera, detector, servo, calibrator, loggers) against rendering
+    and detecting the same frames alone (``rendered_reference``: same ``RgbdSensor`` set-up, the
+    arm set to the joint positions that reach the robot poses the loop logged at each frame, the
+    same number of frames). The reference's detections must equal the loop's
+    (``check_same_detections``), so both sides render and detect the same images. Target
+    ≤ 1.3×; per-frame costs: render, detect (reference), rest = (loop − reference) / frames."""
+    from ..scenario import transform_matrix
+    from ..simulation import run_scenario
+    from ..systems.arm import make_control_plant
+
     model = rendered_model_type()
     if model is None:
         log("  rendered loop: not available yet (camera.model has no rendered variant)")
         return [{"section": "rendered", "what": "rendered loop", "status": "not available yet"}]
-    log(f"  rendered loop: camera model {model.__name__} found, but this benchmark has no "
-        "measurement for it yet (apps/speed.py: rendered_section)")
-    return [{"section": "rendered", "what": "rendered loop", "status": "not measured"}]
+    path = RENDERED_SCENARIO if scenario_path is None else Path(scenario_path)
+    if not path.is_file():
+        log(f"  rendered loop: not measured ({path} not found: run from a source checkout)")
+        return [{"section": "rendered", "what": "rendered loop", "status": "no scenario file"}]
+    scenario = rendered_scenario(path, duration)
+    # An untimed run gives the robot pose of every frame (the loop is deterministic: each timed
+    # run renders the same frames, checked below).
+    first = run_scenario(scenario)
+    a = scenario.arm
+    control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame,
+                                 X_WB=transform_matrix(a.X_WB, "arm.X_WB"))
+    Q = arm_positions_reaching(control, a.base_frame, a.ee_frame, first.X_BE_samples,
+                               np.radians(a.q0_deg))
+    reference_run = rendered_reference(scenario)
+    costs = []  # (render s, detect s) of every reference run
+
+    def loop():
+        result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo
+        return result.wall_time, result
+
+    def reference():
+        seconds, out = reference_run(Q)
+        costs.append(out[:2])
+        return seconds, out
+
+    timings = interleaved({"loop": loop, "reference": reference}, repeats)
+    result = timings["loop"][2]
+    frames = len(Q)
+    if len(result.times) != frames or not np.array_equal(result.X_BE_samples,
+                                                         first.X_BE_samples):
+        raise AssertionError("the rendered loop is not repeatable: its frames changed")
+    diff = check_same_detections(timings["reference"][2][2], result.detector_found,
+                                 result.X_CT_samples)
+    ours, ref = timings["loop"][0], timings["reference"][0]
+    # Render and detect per frame: medians over the repeats of the reference's sums.
+    render_ms = 1e3 * statistics.median(c[0] for c in costs) / frames
+    detect_ms = 1e3 * statistics.median(c[1] for c in costs) / frames
+    row = {"section": "rendered",
+           "what": f"rendered loop ({path.name}, {scenario.duration:g} s simulated, {frames} "
+           f"frames; real-time factor {scenario.duration / ours:.2f})", "value_us": ours,
+           "unit": "s", "reference": f"the same {frames} frames rendered (same RgbdSensor, "
+           "same arm poses) and detected alone", "reference_us": ref, "ratio": ours / ref,
+           "target": TARGETS["rendered"], "frames": frames,
+           "per_frame_ms": {"loop": 1e3 * ours / frames, "render": render_ms,
+                            "detect": detect_ms, "rest": 1e3 * (ours - ref) / frames},
+           "found_frames": int(np.sum(result.detector_found > 0.5)),
+           "max_X_CT_difference": diff}
+    log(_format_row(row))
+    pf = row["per_frame_ms"]
+    log(f"  per frame: loop {pf['loop']:.1f} ms = render {pf['render']:.1f} ms + detect "
+        f"{pf['detect']:.1f} ms + rest {pf['rest']:.1f} ms (arm simulation, servo, calibrator, "
+        f"samplers, loggers); board found in {row['found_frames']} of {frames} frames, "
+        f"detections equal to the loop's (max |ΔX_CT| {diff:.1e})")
+    return [row]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -750,7 +923,8 @@ def _format_calibrate(row: dict) -> str:
 # Driver and command line.
 
 def run_speed_benchmark(sections=SECTIONS, repeats: int = 7, loop_repeats: int = 3,
-                        calibrate_sizes=CALIBRATE_SIZES, log=print) -> dict:
+                        calibrate_sizes=CALIBRATE_SIZES, log=print,
+                        rendered_duration: float = RENDERED_DURATION) -> dict:
     """Runs the requested sections and returns the JSON-able report."""
     unknown = [s for s in sections if s not in SECTIONS]
     if unknown:
@@ -771,7 +945,8 @@ def run_speed_benchmark(sections=SECTIONS, repeats: int = 7, loop_repeats: int =
         elif section == "loop":
             report["rows"] += loop_section(loop_repeats, log=log)
         elif section == "rendered":
-            report["rows"] += rendered_section(loop_repeats, log=log)
+            report["rows"] += rendered_section(loop_repeats, log=log,
+                                               duration=rendered_duration)
         else:
             report["rows"] += calibrate_section(calibrate_sizes, log=log)
     report["load_average_after"] = load_average()
@@ -783,7 +958,7 @@ def run_speed_benchmark(sections=SECTIONS, repeats: int = 7, loop_repeats: int =
 def _speed(args) -> int:
     json_path = check_output_file(args.json, "--json", args.force) if args.json else None
     report = run_speed_benchmark(args.sections, args.repeats, args.loop_repeats,
-                                 args.calibrate_sizes)
+                                 args.calibrate_sizes, rendered_duration=args.rendered_duration)
     report["command"] = " ".join(["handeye-drake"] + sys.argv[1:])
     if json_path is not None:
         json_path.write_text(json.dumps(report, indent=2) + "\n")
@@ -807,6 +982,9 @@ def add_parser(benchmark_subparsers) -> argparse.ArgumentParser:
     p.add_argument("--calibrate-sizes", type=int, nargs="+", default=list(CALIBRATE_SIZES),
                    metavar="N", help="camera samples of the calibrate recordings "
                    "(default 100 1000 10000 100000)")
+    p.add_argument("--rendered-duration", type=float, default=RENDERED_DURATION, metavar="S",
+                   help="simulated seconds of the rendered loop (default "
+                   f"{RENDERED_DURATION:g})")
     p.add_argument("--json", metavar="FILE", help="also write the results as JSON")
     p.add_argument("--force", action="store_true", help="overwrite an existing --json file")
     p.set_defaults(func=_speed)

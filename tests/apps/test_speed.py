@@ -44,8 +44,49 @@ def test_recordings_follow_the_example_pose_model(tmp_path):
     assert sum(1 for l in robot.read_text().splitlines() if not l.startswith("#")) >= 49 / 15 * 50
 
 
-def test_rendered_section_says_when_it_is_not_available():
+def test_rendered_section_times_the_loop_against_the_same_frames_rendered_and_detected():
     lines = []
-    rows = speed.rendered_section(1, log=lines.append)
-    if speed.rendered_model_type() is None:
-        assert rows[0]["status"] == "not available yet" and "not available yet" in lines[0]
+    (row,) = speed.rendered_section(1, log=lines.append, duration=0.2)
+    # 0.2 s at 30 Hz: the frame at initialization and the periodic ones at 0, …, 1/6 s.
+    assert row["frames"] == 7 and row["found_frames"] == 7
+    assert row["max_X_CT_difference"] <= 1e-9 and row["target"] == 1.3
+    assert row["ratio"] == pytest.approx(row["value_us"] / row["reference_us"])
+    assert set(row["per_frame_ms"]) == {"loop", "render", "detect", "rest"}
+    assert row["per_frame_ms"]["loop"] == pytest.approx(1e3 * row["value_us"] / 7)
+    assert "detections equal to the loop's" in lines[-1]
+
+
+def test_the_rendered_reference_renders_and_detects_what_the_loop_did():
+    from handeye_drake.estimation.se3 import rotation_angle
+    from handeye_drake.scenario import transform_matrix
+    from handeye_drake.simulation import run_scenario
+    from handeye_drake.systems.arm import make_control_plant
+
+    scenario = speed.rendered_scenario(duration=0.2)
+    result = run_scenario(scenario)
+    a = scenario.arm
+    plant = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame,
+                               X_WB=transform_matrix(a.X_WB, "arm.X_WB"))
+    Q = speed.arm_positions_reaching(plant, a.base_frame, a.ee_frame, result.X_BE_samples,
+                                     np.radians(a.q0_deg))
+    # The joint positions reach the logged poses.
+    context = plant.CreateDefaultContext()
+    for q, X in zip(Q, result.X_BE_samples):
+        plant.SetPositions(context, q)
+        X_q = plant.CalcRelativeTransform(context, plant.GetFrameByName(a.base_frame),
+                                          plant.GetFrameByName(a.ee_frame)).GetAsMatrix4()
+        assert np.abs(X_q[:3, 3] - X[:3, 3]).max() < 1e-11
+        assert rotation_angle(X_q[:3, :3].T @ X[:3, :3]) < 1e-11
+    seconds, (render, detect, detections) = speed.rendered_reference(scenario)(Q)
+    assert len(detections) == len(result.times) == 7 and 0 < render + detect <= seconds
+    assert speed.check_same_detections(detections, result.detector_found,
+                                       result.X_CT_samples) <= 1e-9
+    # The check catches a different computation: a moved pose, a lost frame.
+    moved = result.X_CT_samples.copy()
+    moved[3, 0, 3] += 1e-6
+    with pytest.raises(AssertionError, match="disagree on X_CT"):
+        speed.check_same_detections(detections, result.detector_found, moved)
+    lost = result.detector_found.copy()
+    lost[2] = 0.0
+    with pytest.raises(AssertionError, match=r"where the target was found: \[2\]"):
+        speed.check_same_detections(detections, lost, result.X_CT_samples)
