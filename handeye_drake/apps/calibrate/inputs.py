@@ -464,6 +464,8 @@ def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrins
     elif info is not None and info.calibrated:
         intrinsics = info.intrinsics(f"--camera-info-topic {info_topic}")
         source, how = f"--camera-info-topic {info_topic}: CameraInfo", f"CameraInfo {info_topic}"
+        notes.append(f"intrinsics from the CameraInfo on {info_topic} ({info.width}×"
+                     f"{info.height}, {info.distortion_model or 'no distortion model'})")
     else:
         if info is not None:
             notes.append(f"CameraInfo on {info_topic} has K = 0 (an uncalibrated camera)")
