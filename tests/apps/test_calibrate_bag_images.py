@@ -7,6 +7,7 @@ maximum-likelihood fit; the errors a user meets, each as one line with exit stat
 import json
 import tracemalloc
 
+import cv2
 import numpy as np
 import pytest
 
@@ -29,9 +30,17 @@ SHIPPED = load_intrinsics(IMAGES / "intrinsics.yaml")
 DAMAGED_NS = 1_700_000_009_000_000_000
 
 
-def _extras(b):
+def _extras(b, truth):
     """Topics for the error cases: a depth image, CameraInfo for another size, a fisheye one,
-    an uncalibrated one (K = 0)."""
+    an uncalibrated one (K = 0); images without stamps, and images 1-4 with the first two
+    stamped alike."""
+    grey = [cv2.imread(str(IMAGES / im["file"]), cv2.IMREAD_GRAYSCALE) for im in truth["images"]]
+    for k, stamp in enumerate([0, 0, 2, 3]):
+        ns = truth["images"][stamp]["stamp_ns"]
+        for topic, header_ns in (("/camera/restamped/image_raw", ns),
+                                 ("/camera/unstamped/image_raw", 0)):
+            b.add(topic, "sensor_msgs/msg/Image", ns + k,
+                  b.image(header_ns, CAMERA_FRAME, grey[k], "mono8"))
     for k in range(3):
         ns = 1_700_000_001_000_000_000 + k * 10**8
         depth = np.full((6, 8), 1.5, np.float32)
@@ -58,7 +67,7 @@ def recordings(tmp_path_factory):
                    writer.compressed(DAMAGED_NS, CAMERA_FRAME, b"\x89PNG\r\n\x1a\n cut",
                                      "mono8; png compressed mono8"))
         if storage == "ros1":
-            _extras(writer)
+            _extras(writer, truth)
         writer.write()
         out[storage] = (path, truth)
     return out
@@ -119,6 +128,13 @@ def test_camera_info_gives_the_shipped_intrinsics_in_every_format(recordings):
         info = bags.read_bag(path, robot_frames=None,
                              camera_info_topic=CAMERA_INFO_TOPIC).camera_info
         assert info.intrinsics() == SHIPPED, storage
+    path, _ = recordings["ros1"]
+    info = bags.read_bag(path, None, camera_info_topic="/camera/uncalibrated/camera_info"
+                         ).camera_info
+    assert not info.calibrated
+    with pytest.raises(ValueError, match=r"^CameraInfo: K is all zeros \(ROS's uncalibrated "
+                       r"camera\)$"):
+        info.intrinsics()
     # The one the calibration used, found beside the compressed topic.
     path, truth = recordings["mcap"]
     streams = bag_image_streams(path, "base_link:tool0", COMPRESSED_TOPIC, truth["target"])
@@ -135,6 +151,18 @@ def test_max_images_reads_an_even_subset_and_says_so(recordings):
         _seconds(truth["images"][k - 1]["stamp_ns"]) for k in (1, 4, 7, 11, 14)]
     assert streams.inputs["images"]["intrinsics_note"].startswith(
         f"5 of the 14 images on {IMAGE_TOPIC} used, evenly spaced over the bag (--max-images 5)")
+
+
+def test_an_image_stamped_like_an_earlier_one_is_not_a_new_sample(recordings):
+    path, truth = recordings["ros1"]
+    streams = bag_image_streams(path, "base_link:tool0", "/camera/restamped/image_raw",
+                                truth["target"])
+    assert [(r.message, r.found, r.reason) for r in streams.images] == [
+        (1, True, ""), (2, False, "same header stamp as an earlier image"), (3, True, ""),
+        (4, True, "")]
+    assert streams.camera.timestamps.tolist() == [
+        _seconds(truth["images"][k]["stamp_ns"]) for k in (0, 2, 3)]
+    assert [streams.camera.lines[k] for k in range(3)] == [1, 3, 4]
 
 
 def test_images_are_streamed_not_held(tmp_path):
@@ -182,7 +210,9 @@ def test_without_usable_camera_info_the_intrinsics_come_from_the_images(recordin
      "--image-topic: no topic '/camera/image'; topics: /camera/color/image_raw "
      "(sensor_msgs/msg/Image, 14 msgs), /camera/color/image_raw/compressed "
      "(sensor_msgs/msg/CompressedImage, 15 msgs), /camera/depth/image_raw (sensor_msgs/msg/Image, "
-     "3 msgs) (those of type sensor_msgs/msg/Image or sensor_msgs/msg/CompressedImage; 6 others)"),
+     "3 msgs), /camera/restamped/image_raw (sensor_msgs/msg/Image, 4 msgs), "
+     "/camera/unstamped/image_raw (sensor_msgs/msg/Image, 4 msgs) (those of type "
+     "sensor_msgs/msg/Image or sensor_msgs/msg/CompressedImage; 6 others)"),
     (("--image-topic", "/camera/depth/image_raw"),
      "/camera/depth/image_raw message 1: unsupported image encoding '32FC1'; supported: mono8, "
      "8UC1, mono16, 16UC1, rgb8, bgr8, rgba8, bgra8 (or a CompressedImage topic)"),
@@ -197,6 +227,9 @@ def test_without_usable_camera_info_the_intrinsics_come_from_the_images(recordin
      "expected sensor_msgs/msg/CameraInfo"),
     (("--image-topic", IMAGE_TOPIC, "--intrinsics", "/nowhere/intrinsics.yaml"),
      "intrinsics '/nowhere/intrinsics.yaml': no such file"),
+    (("--image-topic", "/camera/unstamped/image_raw"),
+     "--image-topic /camera/unstamped/image_raw: no image could be read (message 1 (stamp "
+     "0.000000): header stamp not set (0): the image cannot be placed in time; message 2"),
 ])
 def test_errors_are_one_line(recordings, tmp_path, capsys, args, message):
     path, truth = recordings["ros1"]

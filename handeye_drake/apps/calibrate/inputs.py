@@ -210,18 +210,14 @@ def _bag_frames(path, topic: str, max_images: int | None):
     drawings are named by index and header stamp."""
     from ...recorded.bags import iter_images
     with closing(iter_images(path, topic, max_images, what="--image-topic")) as messages:
-        yield from _frames_of_messages(messages, topic)
-
-
-def _frames_of_messages(messages, topic: str):
-    for index, m in enumerate(messages):
-        reason = m.error or ("" if m.stamp_ns else "header stamp not set (0): the image "
-                             "cannot be placed in time")
-        record = ImageRecord(f"{topic}#{m.message}", None, reason=reason, stamp=m.stamp,
-                             message=m.message)
-        image = None if reason else _for_detection(m.image)
-        sec, nsec = divmod(m.stamp_ns, 1_000_000_000)
-        yield _Frame(record, image, f"detections/{index:04d}_{sec}.{nsec:09d}.png")
+        for index, m in enumerate(messages):
+            reason = m.error or ("" if m.stamp_ns else "header stamp not set (0): the image "
+                                 "cannot be placed in time")
+            record = ImageRecord(f"{topic}#{m.message}", None, reason=reason, stamp=m.stamp,
+                                 message=m.message)
+            image = None if reason else _for_detection(m.image)
+            sec, nsec = divmod(m.stamp_ns, 1_000_000_000)
+            yield _Frame(record, image, f"detections/{index:04d}_{sec}.{nsec:09d}.png")
 
 
 def _first_size(frames, what: str) -> tuple[int, int]:
@@ -235,6 +231,8 @@ def _first_size(frames, what: str) -> tuple[int, int]:
             reasons.append(f"{f.record.label()}: {f.record.reason}")
     finally:
         frames.close()
+    if not reasons:
+        raise ValueError(f"{what}: no image (the topic has no message)")
     raise ValueError(f"{what}: no image could be read (" + "; ".join(reasons[:3]) + ")")
 
 
