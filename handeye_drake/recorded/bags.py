@@ -57,6 +57,7 @@ class UnsupportedEncoding(ValueError):
     """An image encoding (or compressed format) ``decode_image`` cannot read: the whole topic is
     unusable, unlike one corrupt message."""
 
+
 #: A quaternion in a message whose norm is off by more than this is an error (closer: normalized).
 QUATERNION_NORM_TOLERANCE = 1e-3
 
