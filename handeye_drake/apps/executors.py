@@ -90,8 +90,10 @@ def make_executor(workers: int = 1, scheduler: str | None = None,
         try:
             if dask_local:
                 with _workers_ignore_ctrl_c():
+                    # ":0": the dashboard on a free port (None still tries 8787, and warns
+                    # when another cluster holds it).
                     cluster = LocalCluster(n_workers=int(dask_local), threads_per_worker=1,
-                                           processes=True, dashboard_address=None,
+                                           processes=True, dashboard_address=":0",
                                            silence_logs=logging.ERROR)
                 client = Client(cluster)
                 where = f"Dask LocalCluster, {dask_local} worker processes"

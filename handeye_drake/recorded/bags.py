@@ -20,9 +20,11 @@ What ``read_bag`` extracts (times are header stamps, seconds, on the recording's
 - ``images``: (stamp, array) from a ``sensor_msgs`` ``Image`` (encodings mono8/8UC1 → (H, W)
   uint8, mono16/16UC1 → (H, W) uint16, rgb8/bgr8/rgba8/bgra8 → (H, W, 3) uint8 in OpenCV's BGR
   order, alpha dropped) or ``CompressedImage`` topic (decoded with ``cv2.imdecode``; OpenCV is
-  then needed), evenly thinned to at most ``max_images``.
+  then needed), evenly thinned to at most ``max_images``. ``read_bag`` keeps them all in memory;
+  ``iter_images`` streams them one at a time (a large bag's images never all in memory).
 - ``camera_info``: K, D, width, height of the first ``sensor_msgs`` ``CameraInfo`` message
-  (``CameraInfo``; ``.intrinsics()`` gives the package's ``CameraIntrinsics``).
+  (``CameraInfo``; ``.intrinsics()`` gives the package's ``CameraIntrinsics``; an all-zero K is
+  ROS's "uncalibrated", ``calibrated`` is then False).
 
 Frame names lose a leading "/" (ROS 1 style). Errors are ``ValueError`` naming the bag and the
 topic or frame, listing what the bag holds (topics with types and counts; tf frames seen).
@@ -32,7 +34,6 @@ requested chains once these are known (before that, for every transform seen).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from array import array
 from dataclasses import dataclass, field
@@ -50,6 +51,12 @@ COMPRESSED_IMAGE_TYPE = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 ENCODINGS = ("mono8", "8UC1", "mono16", "16UC1", "rgb8", "bgr8", "rgba8", "bgra8")
+
+
+class UnsupportedEncoding(ValueError):
+    """An image encoding (or compressed format) ``decode_image`` cannot read: the whole topic is
+    unusable, unlike one corrupt message."""
+
 
 #: A quaternion in a message whose norm is off by more than this is an error (closer: normalized).
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -94,20 +101,22 @@ class CameraInfo:
     def v0(self) -> float:
         return float(self.K[1, 2])
 
-    def intrinsics(self):
+    @property
+    def calibrated(self) -> bool:
+        """False for ROS's "uncalibrated camera" (K all zeros)."""
+        return bool(np.any(self.K != 0))
+
+    def intrinsics(self, source: str = "CameraInfo"):
         """The package's ``vision.camera_model.CameraIntrinsics`` (alpha_u = fx, alpha_v = fy,
-        u0 = cx, v0 = cy, width, height; a skew K[0, 1] becomes the axes angle θ with
-        K[0, 1] = −fx cot θ, K[1, 1] = alpha_v / sin θ; ``distortion`` = D when that field
-        exists)."""
-        from ..vision.camera_model import CameraIntrinsics
-        fx, s = self.alpha_u, float(self.K[0, 1])
-        theta = math.atan2(fx, -s) if s != 0.0 else math.pi / 2
-        kwargs = dict(alpha_u=fx, alpha_v=self.alpha_v * math.sin(theta) if s else self.alpha_v,
-                      theta=theta, u0=self.u0, v0=self.v0, width=self.width,
-                      height=self.height)
-        if "distortion" in {f.name for f in dataclasses.fields(CameraIntrinsics)}:
-            kwargs["distortion"] = tuple(self.D)
-        return CameraIntrinsics(**kwargs)
+        u0 = cx, v0 = cy, width, height, distortion = D; a skew K[0, 1] becomes the axes angle
+        θ). Raises ValueError, starting with ``source``, for an uncalibrated camera, a distortion
+        model other than OpenCV's pinhole ones (``plumb_bob``, ``rational_polynomial``) or a D
+        of a length OpenCV does not take."""
+        from ..vision.intrinsics import intrinsics_from_camera_info
+        if not self.calibrated:
+            raise ValueError(f"{source}: K is all zeros (ROS's uncalibrated camera)")
+        return intrinsics_from_camera_info(self.K, self.D, self.width, self.height,
+                                           self.distortion_model, source)
 
 
 @dataclass
@@ -382,13 +391,22 @@ def _poses_from_rows(rows: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------- images
 def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
-    """An Image or CompressedImage message as a numpy array (see the module docstring)."""
+    """An Image or CompressedImage message as a numpy array (see the module docstring).
+
+    Raises:
+        UnsupportedEncoding: an encoding (or compressed format) not in ``ENCODINGS`` / png, jpeg.
+        ValueError: a message whose data does not hold its image (truncated, corrupt).
+    """
     if msgtype == COMPRESSED_IMAGE_TYPE:
         try:
             import cv2
         except ImportError:
             raise ValueError(f"{where}: decoding sensor_msgs/CompressedImage needs OpenCV (pip "
                              "install opencv-python-headless)") from None
+        if "compresseddepth" in str(msg.format).lower():
+            raise UnsupportedEncoding(f"{where}: unsupported compressed format {msg.format!r} "
+                                      "(a depth image); expected a png or jpeg colour or grey "
+                                      "image")
         img = cv2.imdecode(np.frombuffer(bytes(msg.data), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         if img is None:
             raise ValueError(f"{where}: cannot decode the compressed image (format "
@@ -399,8 +417,8 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     channels = {"mono8": 1, "8UC1": 1, "mono16": 1, "16UC1": 1, "rgb8": 3, "bgr8": 3,
                 "rgba8": 4, "bgra8": 4}.get(enc)
     if channels is None:
-        raise ValueError(f"{where}: unsupported image encoding {enc!r}; supported: "
-                         f"{', '.join(ENCODINGS)}")
+        raise UnsupportedEncoding(f"{where}: unsupported image encoding {enc!r}; supported: "
+                                  f"{', '.join(ENCODINGS)} (or a CompressedImage topic)")
     size = 2 if enc in ("mono16", "16UC1") else 1
     row = w * channels * size
     data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
@@ -424,7 +442,9 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
 def _camera_info(msg, where: str) -> CameraInfo:
     K = np.array(getattr(msg, "k", None) if hasattr(msg, "k") else msg.K, dtype=float)
     D = getattr(msg, "d", None) if hasattr(msg, "d") else msg.D
-    if K.shape != (9,) or not np.all(np.isfinite(K)) or K[0] <= 0 or K[4] <= 0 or K[8] != 1:
+    uncalibrated = K.shape == (9,) and not np.any(K)
+    if not uncalibrated and (K.shape != (9,) or not np.all(np.isfinite(K)) or K[0] <= 0
+                             or K[4] <= 0 or K[8] != 1):
         raise ValueError(f"{where}: invalid camera matrix K = {K.tolist()} (need fx, fy > 0 and "
                          "K[2, 2] = 1: is the camera calibrated?)")
     return CameraInfo(K.reshape(3, 3), tuple(float(v) for v in D), int(msg.width),
@@ -433,17 +453,17 @@ def _camera_info(msg, where: str) -> CameraInfo:
 
 
 # -------------------------------------------------------------------------------- entry point
-def _find_camera_info(image_topic: str, topics: dict) -> str | None:
+def find_camera_info(image_topic: str, topics: dict, only_beside: bool = False) -> str | None:
     """The CameraInfo topic of an image topic: ``camera_info`` in its namespace or an enclosing
-    one (``/cam/color/image_raw/compressed`` → ``/cam/color/camera_info``), else the bag's only
-    CameraInfo topic, else None."""
+    one (``/cam/color/image_raw/compressed`` → ``/cam/color/camera_info``), else (unless
+    ``only_beside``) the bag's only CameraInfo topic, else None."""
     infos = [t for t, (typ, _) in topics.items() if typ == CAMERA_INFO_TYPE]
     parts = image_topic.rstrip("/").split("/")
     for k in range(len(parts) - 1, 0, -1):
         candidate = "/".join(parts[:k]) + "/camera_info"
         if candidate in infos:
             return candidate
-    return infos[0] if len(infos) == 1 else None
+    return infos[0] if len(infos) == 1 and not only_beside else None
 
 
 def _open(path: Path):
@@ -451,6 +471,133 @@ def _open(path: Path):
     from rosbags.typesys import Stores, get_typestore
     store = Stores.ROS1_NOETIC if path.suffix == ".bag" else Stores.ROS2_HUMBLE
     return AnyReader([path], default_typestore=get_typestore(store))
+
+
+def _opened(path) -> tuple:
+    """(open reader, bag name) or ValueError naming the bag."""
+    path = Path(path)
+    bag = str(path)
+    if not path.exists():
+        raise ValueError(f"{bag}: no such file or directory")
+    try:
+        reader = _open(path)
+        reader.open()
+    except Exception as e:  # rosbags raises its own error types, and OSError
+        raise ValueError(f"{bag}: cannot read as a ROS bag (.bag, .db3, .mcap or a rosbag2 "
+                         f"directory): {e}") from None
+    return reader, bag
+
+
+def _topics(reader) -> dict:
+    return {name: (info.msgtype, int(info.msgcount)) for name, info in reader.topics.items()}
+
+
+def bag_topics(path) -> dict:
+    """{topic: (message type, message count)} of a bag (its index only; no message is read)."""
+    reader, _ = _opened(path)
+    try:
+        return _topics(reader)
+    finally:
+        reader.close()
+
+
+def require_topic(bag: str, topics: dict, topic, types, what: str):
+    """``topic`` if the bag has it with one of ``types``, else ValueError listing the topics (of
+    those types when there are any)."""
+    if topic not in topics:
+        of_type = {t: v for t, v in topics.items() if v[0] in types}
+        kinds = " or ".join(types)
+        if of_type:
+            listed = (f"topics: {_describe_topics(of_type)} (those of type {kinds}; "
+                      f"{len(topics) - len(of_type)} others)")
+        else:
+            listed = f"none of type {kinds}; topics: {_describe_topics(topics)}"
+        raise ValueError(f"{bag}: {what}: no topic {topic!r}; {listed}")
+    if topics[topic][0] not in types:
+        raise ValueError(f"{bag}: {what}: topic {topic!r} has type {topics[topic][0]}, "
+                         f"expected {' or '.join(types)}")
+    return topic
+
+
+def subsample(count: int, max_count: int | None) -> np.ndarray:
+    """0-based indices of at most ``max_count`` of ``count`` items, evenly spaced over them
+    (first and last included); all of them when ``max_count`` is None or not smaller."""
+    if max_count is None or count <= max_count:
+        return np.arange(count)
+    if max_count == 1:
+        return np.zeros(1, dtype=int)
+    return np.unique(np.round(np.linspace(0, count - 1, max_count)).astype(int))
+
+
+def _check_max_images(max_images):
+    if max_images is not None and (not isinstance(max_images, (int, np.integer))
+                                   or isinstance(max_images, bool) or max_images < 1):
+        raise ValueError(f"max_images: expected a positive integer or None, got {max_images!r}")
+
+
+@dataclass(frozen=True)
+class BagImage:
+    """One message of an image topic, as ``iter_images`` yields it.
+
+    Attributes:
+        message: its number on the topic (1-based, bag order).
+        stamp_ns: header stamp (ns since the epoch of the recording's clock; 0 when the driver
+            left it unset).
+        received_ns: the bag's receive (log) time of the message (ns).
+        image: the decoded array (see the module docstring), or None when the message cannot be
+            decoded (``error`` says why).
+        error: "" or why the message gives no image.
+    """
+
+    message: int
+    stamp_ns: int
+    received_ns: int
+    image: np.ndarray | None
+    error: str = ""
+
+    @property
+    def stamp(self) -> float:
+        """Header stamp, seconds."""
+        return _seconds(self.stamp_ns)
+
+
+def iter_images(path, image_topic: str, max_images: int | None = None,
+                what: str = "image_topic"):
+    """Streams the images of an ``Image`` or ``CompressedImage`` topic in bag order, one decoded
+    image at a time (``BagImage``); with ``max_images``, only that many messages, evenly spaced
+    over the topic (``subsample``), are deserialized and decoded.
+
+    A message that cannot be decoded (truncated, corrupt) is yielded with ``image=None`` and
+    the reason; an unsupported encoding raises ``UnsupportedEncoding`` (naming the bag, topic,
+    message and encoding), as does a missing or mistyped topic (ValueError listing the bag's
+    image topics; ``what`` names the argument in it)."""
+    _check_max_images(max_images)
+    reader, bag = _opened(path)
+    try:
+        topics = _topics(reader)
+        require_topic(bag, topics, image_topic, (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), what)
+        chosen = set(subsample(topics[image_topic][1], max_images).tolist())
+        connections = [c for c in reader.connections if c.topic == image_topic]
+        k = 0
+        for connection, received, raw in reader.messages(connections=connections):
+            k += 1
+            if k - 1 not in chosen:
+                continue  # skipped before deserializing
+            where = f"{bag}: {image_topic} message {k}"
+            try:
+                msg = reader.deserialize(raw, connection.msgtype)
+            except Exception as e:  # rosbags' own error types on a corrupt message
+                yield BagImage(k, 0, int(received), None, f"cannot deserialize it ({e})")
+                continue
+            try:
+                image, error = decode_image(msg, connection.msgtype, where), ""
+            except UnsupportedEncoding:
+                raise
+            except ValueError as e:
+                image, error = None, str(e).removeprefix(where + ": ")
+            yield BagImage(k, _stamp_ns(msg.header), int(received), image, error)
+    finally:
+        reader.close()
 
 
 def read_bag(path, robot_frames=("base_link", "tool0"), camera_topic=None, camera_frames=None,
@@ -478,23 +625,12 @@ def read_bag(path, robot_frames=("base_link", "tool0"), camera_topic=None, camer
         ValueError: unreadable bag, missing or mistyped topic, missing frame or chain (the
             message lists the bag's topics or tf frames), bad message contents.
     """
-    path = Path(path)
-    bag = str(path)
     if camera_topic is not None and camera_frames is not None:
         raise ValueError("camera_topic, camera_frames: give one camera source, not both")
     robot_pair = None if robot_frames is None else _pair(robot_frames, "robot_frames")
     camera_pair = None if camera_frames is None else _pair(camera_frames, "camera_frames")
-    if max_images is not None and (not isinstance(max_images, (int, np.integer))
-                                   or isinstance(max_images, bool) or max_images < 1):
-        raise ValueError(f"max_images: expected a positive integer or None, got {max_images!r}")
-    if not path.exists():
-        raise ValueError(f"{bag}: no such file or directory")
-    try:
-        reader = _open(path)
-        reader.open()
-    except Exception as e:  # rosbags raises its own error types, and OSError
-        raise ValueError(f"{bag}: cannot read as a ROS bag (.bag, .db3, .mcap or a rosbag2 "
-                         f"directory): {e}") from None
+    _check_max_images(max_images)
+    reader, bag = _opened(path)
     try:
         return _read(reader, bag, robot_pair, camera_topic, camera_pair, image_topic,
                      camera_info_topic, bool(camera_invert), max_images)
@@ -504,23 +640,17 @@ def read_bag(path, robot_frames=("base_link", "tool0"), camera_topic=None, camer
 
 def _read(reader, bag, robot_pair, camera_topic, camera_pair, image_topic, camera_info_topic,
           camera_invert, max_images) -> BagData:
-    topics = {name: (info.msgtype, int(info.msgcount)) for name, info in reader.topics.items()}
+    topics = _topics(reader)
 
     def need(topic, types, what):
-        if topic not in topics:
-            raise ValueError(f"{bag}: {what}: no topic {topic!r}; topics: "
-                             f"{_describe_topics(topics)}")
-        if topics[topic][0] not in types:
-            raise ValueError(f"{bag}: {what}: topic {topic!r} has type {topics[topic][0]}, "
-                             f"expected {' or '.join(types)}")
-        return topic
+        return require_topic(bag, topics, topic, types, what)
 
     if camera_topic is not None:
         need(camera_topic, POSE_TYPES, "camera_topic")
     if image_topic is not None:
         need(image_topic, (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), "image_topic")
         if camera_info_topic is None:
-            camera_info_topic = _find_camera_info(image_topic, topics)
+            camera_info_topic = find_camera_info(image_topic, topics)
     if camera_info_topic is not None:
         need(camera_info_topic, (CAMERA_INFO_TYPE,), "camera_info_topic")
     tf_topics = [t for t, (typ, _) in topics.items() if typ in TF_TYPES]
@@ -536,10 +666,8 @@ def _read(reader, bag, robot_pair, camera_topic, camera_pair, image_topic, camer
         t for t in (camera_topic, image_topic, camera_info_topic) if t is not None}
     connections = [c for c in reader.connections if c.topic in wanted]
 
-    stride = 1
     image_count = topics[image_topic][1] if image_topic is not None else 0
-    if max_images is not None and image_count > max_images:
-        stride = math.ceil(image_count / max_images)
+    chosen = set(subsample(image_count, max_images).tolist())
     counts = dict.fromkeys(wanted, 0)
     camera_rows, images, info, warnings = [], [], None, []
     for connection, _, raw in reader.messages(connections=connections):
@@ -547,7 +675,7 @@ def _read(reader, bag, robot_pair, camera_topic, camera_pair, image_topic, camer
         counts[topic] += 1
         k = counts[topic]
         if topic == image_topic:
-            if (k - 1) % stride or len(images) >= (max_images or math.inf):
+            if k - 1 not in chosen:
                 continue  # skipped before deserializing: images are the bulk of a bag
         msg = reader.deserialize(raw, connection.msgtype)
         where = f"{bag}: {topic} message {k}"

@@ -281,6 +281,21 @@ def load_intrinsics(spec_or_path, width: int | None = None,
     return _intrinsics_from_fields(fields, source, width, height)
 
 
+def intrinsics_from_camera_info(K, D, width, height, distortion_model: str = "",
+                                source: str = "CameraInfo") -> CameraIntrinsics:
+    """Intrinsics from the fields of a ``sensor_msgs/CameraInfo`` message: K (9 numbers, row
+    major), D, width, height (pixels), distortion_model (``plumb_bob``, ``rational_polynomial``
+    or empty). Checked like a camera_info YAML file; errors start with ``source``."""
+    try:
+        K = np.asarray(K, dtype=float).ravel()
+        D = np.asarray(D if D is not None else (), dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"{source}: K and D must be numbers") from None
+    fields = {"K": K, "dist": D if D.size else None, "width": width, "height": height,
+              "model": str(distortion_model) or None, "names": ("K", "D", "width", "height")}
+    return _intrinsics_from_fields(fields, source, None, None)
+
+
 def write_intrinsics_yaml(intrinsics: CameraIntrinsics, path) -> Path:
     """Writes ``intrinsics`` as OpenCV's calibration sample does (``image_width``,
     ``image_height``, ``camera_matrix``, ``distortion_coefficients`` — omitted when there is no
@@ -309,6 +324,7 @@ def write_intrinsics_yaml(intrinsics: CameraIntrinsics, path) -> Path:
 
 __all__ = [
     "ROS_DISTORTION_MODELS",
+    "intrinsics_from_camera_info",
     "load_intrinsics",
     "parse_intrinsics_spec",
     "write_intrinsics_yaml",

@@ -9,15 +9,11 @@ import re
 import cv2
 import numpy as np
 import pytest
-from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
 from handeye_drake.recorded import bags
 from handeye_drake.apps.calibrate import calibrate_streams
 from handeye_drake.recorded.example import TRUE_X_EC, X_BT, camera_pose
-from handeye_drake.recorded.exports import quaternion_xyzw
+from handeye_drake.recorded.example_bag import BagWriter
 from handeye_drake.vision.camera_model import CameraIntrinsics
 
 EPOCH_NS = 1_700_000_000 * 10**9
@@ -108,99 +104,26 @@ def simulate(seed=0):
 
 
 # ---------------------------------------------------------------------------------- writing
-class _Bag:
-    """rosbags writer for one of FORMATS, with message builders for its type store."""
-
-    def __init__(self, path, fmt):
-        self.ros1 = fmt == "ros1"
-        self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
-        if self.ros1:  # not in rosbags' noetic store; a real ROS 1 bag embeds its definition
-            self.store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
-                                                   "tf2_msgs/msg/TFMessage"))
-        if self.ros1:
-            self.writer = Writer1(path)
-        else:
-            plugin = StoragePlugin.SQLITE3 if fmt == "sqlite3" else StoragePlugin.MCAP
-            self.writer = Writer2(path, version=9, storage_plugin=plugin)
-        self.T = self.store.types
-        self.connections = {}
-        self.buffer = []
-
-    def header(self, ns, frame):
-        stamp = self.T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
-        if self.ros1:
-            return self.T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame)
-        return self.T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
-
-    def transform(self, ns, parent, child, X):
-        T = self.T
-        qx, qy, qz, qw = quaternion_xyzw(X[:3, :3])
-        return T["geometry_msgs/msg/TransformStamped"](
-            header=self.header(ns, parent), child_frame_id=child,
-            transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](x=X[0, 3], y=X[1, 3], z=X[2, 3]),
-                rotation=T["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)))
-
-    def tf(self, transforms):
-        return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
-
-    def pose(self, ns, frame, X):
-        T = self.T
-        qx, qy, qz, qw = quaternion_xyzw(X[:3, :3])
-        return T["geometry_msgs/msg/PoseStamped"](
-            header=self.header(ns, frame),
-            pose=T["geometry_msgs/msg/Pose"](
-                position=T["geometry_msgs/msg/Point"](x=X[0, 3], y=X[1, 3], z=X[2, 3]),
-                orientation=T["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)))
+class _Bag(BagWriter):
+    """The package's bag writer with this recording's image and camera info messages."""
 
     def image(self, ns, encoding, rgb, mono16, pad=0):
-        if encoding == "mono16":
-            pixels = mono16.astype(">u2")  # big-endian on the wire
-            data = pixels.view(np.uint8).reshape(6, -1)
-        else:
-            bgr = rgb[:, :, ::-1]
-            pixels = {"rgb8": rgb, "bgr8": bgr, "mono8": rgb[:, :, 0],
-                      "rgba8": np.dstack([rgb, np.full((6, 8), 7, np.uint8)]),
-                      "bgra8": np.dstack([bgr, np.full((6, 8), 9, np.uint8)])}[encoding]
-            data = pixels.reshape(6, -1)
-        data = np.hstack([data, np.full((6, pad), 255, np.uint8)])  # row padding (step > row)
-        return self.T["sensor_msgs/msg/Image"](
-            header=self.header(ns, "camera_optical_frame"), height=6, width=8, encoding=encoding,
-            is_bigendian=int(encoding == "mono16"), step=data.shape[1],
-            data=np.ascontiguousarray(data).reshape(-1))
+        if encoding == "mono16":  # big-endian on the wire
+            return super().image(ns, "camera_optical_frame", mono16, encoding, pad, True)
+        bgr = rgb[:, :, ::-1]
+        pixels = {"rgb8": rgb, "bgr8": bgr, "mono8": rgb[:, :, 0],
+                  "rgba8": np.dstack([rgb, np.full((6, 8), 7, np.uint8)]),
+                  "bgra8": np.dstack([bgr, np.full((6, 8), 9, np.uint8)])}[encoding]
+        return super().image(ns, "camera_optical_frame", pixels, encoding, pad)
 
     def compressed(self, ns, rgb):
         ok, png = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]))
         assert ok
-        return self.T["sensor_msgs/msg/CompressedImage"](
-            header=self.header(ns, "camera_optical_frame"), format="bgr8; png compressed bgr8",
-            data=png.reshape(-1))
+        return super().compressed(ns, "camera_optical_frame", png.tobytes(),
+                                  "bgr8; png compressed bgr8")
 
     def camera_info(self, ns):
-        fields = dict(header=self.header(ns, "camera_optical_frame"), height=480, width=640,
-                      distortion_model="plumb_bob",
-                      binning_x=0, binning_y=0,
-                      roi=self.T["sensor_msgs/msg/RegionOfInterest"](
-                          x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
-        arrays = {"D": np.array(D), "K": np.array(K), "R": np.eye(3).reshape(-1),
-                  "P": np.array(K[:3] + [0.0] + K[3:6] + [0.0] + K[6:] + [0.0])}
-        for key, value in arrays.items():
-            fields[key if self.ros1 else key.lower()] = value
-        return self.T["sensor_msgs/msg/CameraInfo"](**fields)
-
-    def add(self, topic, msgtype, bag_ns, msg):
-        self.buffer.append((bag_ns, len(self.buffer), topic, msgtype, msg))
-
-    def write(self):
-        """Writes every message in bag-time (receive) order, as a recorder would."""
-        with self.writer as w:
-            for bag_ns, _, topic, msgtype, msg in sorted(self.buffer, key=lambda m: m[:2]):
-                if topic not in self.connections:
-                    self.connections[topic] = w.add_connection(topic, msgtype,
-                                                               typestore=self.store)
-                data = self.store.serialize_ros1(msg, msgtype) if self.ros1 else \
-                    self.store.serialize_cdr(msg, msgtype)
-                w.write(self.connections[topic], bag_ns, data)
+        return super().camera_info(ns, "camera_optical_frame", K, D, 640, 480)
 
 
 def write_recording(path, fmt, sim, leading_slash=False):
@@ -347,7 +270,7 @@ def test_camera_info_found_next_to_the_image_topic(recording):
     assert data.image_count == 25 and len(data.images) == 4
     stamps = [s for s, _ in data.images]
     step = stamps[1] - stamps[0]
-    assert step == pytest.approx(3.5, abs=1e-6)  # every 7th of 25 images at 2 Hz
+    assert step == pytest.approx(4.0, abs=1e-6)  # messages 1, 9, 17, 25 of 25 at 2 Hz
     assert np.allclose(np.diff(stamps), step, atol=1e-6)
 
 
@@ -477,7 +400,7 @@ def test_camera_info_topic_is_looked_up_in_enclosing_namespaces():
     info, image = "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/Image"
     topics = {"/cam/color/camera_info": (info, 1), "/cam/depth/camera_info": (info, 1),
               "/cam/color/image_raw": (image, 1)}
-    find = bags._find_camera_info
+    find = bags.find_camera_info
     assert find("/cam/color/image_raw/compressed", topics) == "/cam/color/camera_info"
     assert find("/cam/color/image_raw", topics) == "/cam/color/camera_info"
     assert find("/other/image", topics) is None  # two candidates, none beside it

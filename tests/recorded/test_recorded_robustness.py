@@ -224,7 +224,8 @@ def test_degenerate_parallel_axes(tmp_path, capsys):
     r, c, argv = _calibrate_text(tmp_path, _tum(X_BE, t), _tum(X_CT, t))
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "(near-)parallel" in err and "add a motion rotating" in err
+    assert err.count("\n") == 1 and "(near-)parallel" in err
+    assert "is unobservable" in err and "--fix" in err
 
 
 def test_too_few_samples(tmp_path, capsys):

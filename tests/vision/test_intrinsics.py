@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from handeye_drake.vision.camera_model import CameraIntrinsics, project_points
-from handeye_drake.vision.intrinsics import load_intrinsics, write_intrinsics_yaml
+from handeye_drake.vision.intrinsics import (intrinsics_from_camera_info, load_intrinsics,
+                                             write_intrinsics_yaml)
 
 OPENCV_SAMPLE = """%YAML:1.0
 ---
@@ -168,6 +169,25 @@ def test_ros_camera_info(tmp_path):
                     "k: [600.0, 0.0, 320.0, 0.0, 600.0, 240.0, 0.0, 0.0, 1.0]\n")
     cam = load_intrinsics(path)
     assert cam.distortion == (0.1, 0.01, 0.0, 0.0, 0.0, 0.2, 0.0, 0.0) and cam.width == 640
+
+
+def test_camera_info_message_fields():
+    K = [600.0, 0.0, 320.0, 0.0, 601.0, 240.0, 0.0, 0.0, 1.0]
+    D = [0.1, 0.01, 0.0, 0.0, 0.0, 0.2, 0.0, 0.0]
+    cam = intrinsics_from_camera_info(K, D, 640, 480, "rational_polynomial")
+    assert cam == CameraIntrinsics(600.0, 601.0, u0=320.0, v0=240.0, width=640, height=480,
+                                   distortion=tuple(D))
+    assert intrinsics_from_camera_info(K, [], 640, 480, "").distortion == ()
+    for args, message in [
+            ((K, [0.1, 0.01, 0.0, 0.0], 640, 480, "equidistant", "/cam/camera_info"),
+             "/cam/camera_info: field distortion_model: 'equidistant' is not supported"),
+            ((K, [0.1] * 6, 640, 480, "plumb_bob"),
+             "CameraInfo: field D: OpenCV takes 0, 4, 5, 8, 12, 14 coefficients, got 6"),
+            ((K, [], 0, 480, "plumb_bob"), "CameraInfo: field width: image size must be"),
+            ((K[:6], [], 640, 480, ""), "CameraInfo: field K: expected a 3×3 matrix")]:
+        with pytest.raises(ValueError) as info:
+            intrinsics_from_camera_info(*args)
+        assert str(info.value).startswith(message), str(info.value)
 
 
 @pytest.mark.parametrize("text, message", [

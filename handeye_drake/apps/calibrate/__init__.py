@@ -1,6 +1,7 @@
 """``handeye-drake calibrate``: hand-eye calibration of a real robot from recorded data.
 
-- ``inputs``: pose files, ROS bags, or images of a target paired with robot poses, as streams;
+- ``inputs``: pose files, ROS bags (pose topics, tf, or images of a target), or image files of a
+  target paired with robot poses, as streams;
 - ``pipeline``: ``calibrate_streams`` — alignment, classical start, maximum likelihood on the raw
   poses, hold-out;
 - ``checks``: the verdict (OK / WARN / FAIL) and the usual mistakes tried as alternatives;
@@ -9,7 +10,7 @@
 """
 
 from .command import add_parser, run_calibrate_command
-from .inputs import Streams, bag_streams, file_streams, image_streams
+from .inputs import Streams, bag_image_streams, bag_streams, file_streams, image_streams
 from .pipeline import CalibrationResult, calibrate_streams
 from .report import table, to_dict, write_json
 
@@ -26,6 +27,6 @@ def calibrate_files(robot_path, camera_path, fmt=None, camera_in_target: bool = 
     return result
 
 
-__all__ = ["CalibrationResult", "Streams", "add_parser", "bag_streams", "calibrate_files",
-           "calibrate_streams", "file_streams", "image_streams", "run_calibrate_command",
-           "table", "to_dict", "write_json"]
+__all__ = ["CalibrationResult", "Streams", "add_parser", "bag_image_streams", "bag_streams",
+           "calibrate_files", "calibrate_streams", "file_streams", "image_streams",
+           "run_calibrate_command", "table", "to_dict", "write_json"]

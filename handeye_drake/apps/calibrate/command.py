@@ -2,6 +2,7 @@
 
     handeye-drake calibrate --robot FILE --camera FILE [...]                 pose files
     handeye-drake calibrate --bag PATH --robot-frames B:E --camera-topic T    a ROS bag
+    handeye-drake calibrate --bag PATH --image-topic T --target SPEC          its images
     handeye-drake calibrate --images PATH... --robot FILE --target SPEC      images of a target
 
 Exit status: 0 (verdict OK or WARN), 1 (verdict FAIL — ``calibration.json`` is still written
@@ -16,7 +17,8 @@ import math
 from ...estimation.solvers import METHODS
 from ...recorded.formats import FORMATS, MAX_TRANSLATION
 from ..outputs import prepare_output_dir
-from .inputs import QUATERNION_ORDERS, bag_streams, file_streams, image_streams
+from .inputs import (DEFAULT_MAX_IMAGES, QUATERNION_ORDERS, bag_image_streams, bag_streams,
+                     file_streams, image_streams)
 from .pipeline import calibrate_streams
 from .report import table, write_json
 
@@ -53,6 +55,16 @@ def _positive_float(text: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return v
+
+
+def _max_images_arg(text: str):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v != 0 and v < 3:
+        raise argparse.ArgumentTypeError(f"expected 0 (all) or at least 3, got {text!r}")
+    return v or None
 
 
 def _formats_arg(text: str):
@@ -110,13 +122,24 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     cam.add_argument("--camera-frames", metavar="CAMERA:TARGET",
                      help="X_CT from tf: the pose of TARGET in CAMERA, whichever way the tf "
                           "tree links them")
+    cam.add_argument("--image-topic", metavar="TOPIC",
+                     help="sensor_msgs Image or CompressedImage topic: X_CT from the --target "
+                          "detected in each image, at its header stamp")
+    bag.add_argument("--camera-info-topic", metavar="TOPIC|none",
+                     help="--image-topic: CameraInfo with the intrinsics (default: camera_info "
+                          "beside the image topic; none: calibrate them from the images); "
+                          "--intrinsics overrides it")
+    bag.add_argument("--max-images", type=_max_images_arg, default=DEFAULT_MAX_IMAGES,
+                     metavar="N", help=f"--image-topic: read at most N images, evenly spaced "
+                     f"over the bag (default {DEFAULT_MAX_IMAGES}; 0: all)")
     img = p.add_argument_group("images")
     img.add_argument("--target", metavar="SPEC",
                      help="the target: chessboard:9x6:0.0236, charuco:5x7:0.036:0.018:"
                           "DICT_6X6_250[:legacy], apriltag:36h11:0.048[:ID], ...")
     img.add_argument("--intrinsics", metavar="SPEC|FILE",
                      help="fx,fy,cx,cy[,k1,k2,p1,p2[,k3]], an OpenCV YAML/XML file or a ROS "
-                          "camera_info YAML (default: calibrated from the images)")
+                          "camera_info YAML (default: a bag's CameraInfo, else calibrated from "
+                          "the images)")
     est = p.add_argument_group("estimation")
     est.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
                      help="eye-in-hand (camera on the flange: X_EC, default) or eye-to-hand "
@@ -192,13 +215,20 @@ def run_calibrate_command(args) -> int:
     if (args.camera or args.images) and not args.robot:
         raise ValueError("--robot: the robot poses (X_BE) are needed with "
                          + ("--camera" if args.camera else "--images"))
-    if args.images and not args.target:
-        raise ValueError("--target: the calibration target is needed with --images (e.g. "
-                         "chessboard:9x6:0.0236)")
+    for option, given in (("--images", args.images), ("--image-topic", args.image_topic)):
+        if given and not args.target:
+            raise ValueError(f"--target: the calibration target is needed with {option} (e.g. "
+                             "chessboard:9x6:0.0236)")
+    if args.image_topic and not args.bag:
+        raise ValueError("--image-topic: reads the images of a ROS bag; give --bag PATH")
     mode = args.mode.replace("-", "_")
     out = prepare_output_dir(args.out, "calibrate", args.force)
     robot_scale, camera_scale = _scales(args)
-    if args.bag:
+    if args.bag and args.image_topic:
+        streams = bag_image_streams(args.bag, args.robot_frames, args.image_topic, args.target,
+                                    args.intrinsics, args.camera_info_topic, args.max_images,
+                                    drawings_dir=out)
+    elif args.bag:
         streams = bag_streams(args.bag, args.robot_frames, args.camera_topic,
                               args.camera_frames, args.camera_pose_is_camera_in_target)
     elif args.images:
@@ -250,13 +280,26 @@ def run_calibrate_command(args) -> int:
     return 1 if status == "FAIL" or (status == "WARN" and args.strict) else 0
 
 
+#: Rows of the printed per-image table (all of them are in calibration.json).
+TABLE_ROWS = 40
+
+
 def _image_table(streams) -> str:
     note = streams.inputs["images"].get("intrinsics_note", "")
-    lines = [f"images: {len(streams.images)}" + (f"; {note}" if note else "")]
-    lines.append("  image                          robot line  detected  RMS (px)  note")
-    for r in streams.images:
-        name = r.path.rsplit("/", 1)[-1]
+    records = streams.images
+    lines = [f"images: {len(records)}" + (f"; {note}" if note else "")]
+    from_bag = records[0].message is not None
+    lines.append("  " + ("stamp (s)                         message" if from_bag else
+                         "image                          robot line")
+                 + "  detected  RMS (px)  note")
+    for r in records[:TABLE_ROWS]:
+        name = f"{r.stamp:.6f}" if from_bag else r.path.rsplit("/", 1)[-1]
         rms = f"{r.reprojection_rms_px:8.3f}" if r.found else "       -"
-        lines.append(f"  {name:<30} {r.robot_line:>10}  {'yes' if r.found else 'no':>8}  "
+        where = r.message if from_bag else r.robot_line
+        lines.append(f"  {name:<30} {where:>10}  {'yes' if r.found else 'no':>8}  "
                      f"{rms}  {r.reason}")
+    if len(records) > TABLE_ROWS:
+        skipped = sum(not r.found for r in records[TABLE_ROWS:])
+        lines.append(f"  … {len(records) - TABLE_ROWS} more ({skipped} skipped): "
+                     "inputs.images.per_image in calibration.json")
     return "\n".join(lines)

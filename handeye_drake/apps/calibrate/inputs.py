@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import glob
 import re
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -85,8 +86,9 @@ def bag_streams(path, robot_frames="base_link:tool0", camera_topic=None, camera_
     frames = _frames(robot_frames, "--robot-frames")
     cam_frames = _frames(camera_frames, "--camera-frames") if camera_frames else None
     if camera_topic is None and cam_frames is None:
-        raise ValueError("--bag: give --camera-topic (a pose topic holding X_CT) or "
-                         "--camera-frames CAMERA:TARGET (X_CT from tf)")
+        raise ValueError("--bag: give --camera-topic (a pose topic holding X_CT), "
+                         "--camera-frames CAMERA:TARGET (X_CT from tf) or --image-topic TOPIC "
+                         "with --target SPEC (X_CT from the images)")
     data = read_bag(path, frames, camera_topic=camera_topic, camera_frames=cam_frames,
                     camera_invert=camera_in_target)
     if data.camera is None:
@@ -134,14 +136,50 @@ def image_paths(specs) -> list[Path]:
 
 @dataclass
 class ImageRecord:
-    """What happened to one image: detected (with its reprojection RMS) or skipped (why)."""
+    """What happened to one image: detected (with its reprojection RMS) or skipped (why).
+
+    Image files: ``path`` and the line of the paired robot pose (``robot_line``). Bag images:
+    ``path`` is ``TOPIC#MESSAGE``, ``stamp`` the header stamp (s), ``message`` the message
+    number on the topic (1-based), ``robot_line`` None (the robot pose is interpolated at the
+    stamp)."""
     path: str
-    robot_line: int
-    found: bool
-    reason: str
+    robot_line: int | None
+    found: bool = False
+    reason: str = ""
     reprojection_rms_px: float = float("nan")
     num_points: int = 0
     drawing: str = ""
+    stamp: float | None = None
+    message: int | None = None
+
+    def label(self) -> str:
+        """The image in messages: its file name, or message number and stamp."""
+        if self.message is None:
+            return Path(self.path).name
+        return f"message {self.message} (stamp {self.stamp:.6f})"
+
+
+@dataclass
+class _Frame:
+    """One image to detect the target in: ``image`` (uint8 grey or RGB) or None when it cannot
+    be read (``record.reason`` says why), and the name of its drawing under ``--out``."""
+    record: ImageRecord
+    image: np.ndarray | None
+    drawing: str
+
+
+def _for_detection(image: np.ndarray) -> np.ndarray:
+    """uint8 grey or RGB, what ``detect_target`` and ``draw_detection`` take, from a decoded grey
+    or BGR(A) image (OpenCV's order; alpha dropped) of 8 bits or more (scaled so that its largest
+    value is 255)."""
+    import cv2
+    if image.dtype != np.uint8:
+        image = cv2.convertScaleAbs(image, alpha=255.0 / max(float(image.max()), 1.0))
+    if image.ndim == 3 and image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2RGB)
+    if image.ndim == 3:
+        return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    return image
 
 
 def _read_image(path: Path, max_bytes: int = 100_000_000):
@@ -156,13 +194,46 @@ def _read_image(path: Path, max_bytes: int = 100_000_000):
     image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if len(data) else None
     if image is None:
         return None, "not an image, or a truncated one (OpenCV cannot decode it)"
-    if image.dtype != np.uint8:
-        image = cv2.convertScaleAbs(image, alpha=255.0 / max(float(image.max()), 1.0))
-    if image.ndim == 3 and image.shape[2] == 4:
-        image = cv2.cvtColor(image, cv2.COLOR_BGRA2RGBA)
-    elif image.ndim == 3:
-        image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
-    return image, ""
+    return _for_detection(image), ""
+
+
+def _file_frames(paths, robot: PoseStream):
+    """Frames of image files, each paired with the robot pose of the same rank."""
+    for k, p in enumerate(paths):
+        image, why = _read_image(p)
+        yield _Frame(ImageRecord(str(p), int(robot.lines[k]), reason=why), image,
+                     f"detections/{p.stem}.png")
+
+
+def _bag_frames(path, topic: str, max_images: int | None):
+    """Frames of a bag's image topic, streamed (one decoded image in memory at a time); the
+    drawings are named by index and header stamp."""
+    from ...recorded.bags import iter_images
+    with closing(iter_images(path, topic, max_images, what="--image-topic")) as messages:
+        for index, m in enumerate(messages):
+            reason = m.error or ("" if m.stamp_ns else "header stamp not set (0): the image "
+                                 "cannot be placed in time")
+            record = ImageRecord(f"{topic}#{m.message}", None, reason=reason, stamp=m.stamp,
+                                 message=m.message)
+            image = None if reason else _for_detection(m.image)
+            sec, nsec = divmod(m.stamp_ns, 1_000_000_000)
+            yield _Frame(record, image, f"detections/{index:04d}_{sec}.{nsec:09d}.png")
+
+
+def _first_size(frames, what: str) -> tuple[int, int]:
+    """(width, height) of the first readable frame; ValueError with the first reasons when none
+    is readable. Stops reading there."""
+    reasons = []
+    try:
+        for f in frames:
+            if f.image is not None:
+                return f.image.shape[1], f.image.shape[0]
+            reasons.append(f"{f.record.label()}: {f.record.reason}")
+    finally:
+        frames.close()
+    if not reasons:
+        raise ValueError(f"{what}: no image (the topic has no message)")
+    raise ValueError(f"{what}: no image could be read (" + "; ".join(reasons[:3]) + ")")
 
 
 def _provisional_intrinsics(width: int, height: int):
@@ -225,6 +296,66 @@ def _resampler(detections, intrinsics, std):
     return resample
 
 
+def _self_calibrated(frames, target, width: int, height: int):
+    """(intrinsics, std, note) calibrated from the target seen in the frames of the given size
+    (detected with provisional intrinsics; only the points are kept)."""
+    from ...vision.detection import detect_target
+    rough = _provisional_intrinsics(width, height)
+    first = [detect_target(f.image, target, rough) for f in frames
+             if f.image is not None and f.image.shape[:2] == (height, width)]
+    intrinsics, rms, std = calibrate_intrinsics(first, width, height)
+    note = (f"intrinsics calibrated from the images (cv2.calibrateCamera on "
+            f"{sum(len(d.ids) >= 6 for d in first)} images): RMS {rms:.3f} px, fx "
+            f"{intrinsics.alpha_u:.1f} ± {std[0]:.2f} px; their uncertainty is added to the "
+            "result's σ")
+    return intrinsics, std, note
+
+
+def _given_intrinsics(spec, width: int, height: int):
+    from ...vision.intrinsics import load_intrinsics
+    if "," in str(spec) and not Path(str(spec)).exists():
+        return load_intrinsics(spec, width=width, height=height)
+    return load_intrinsics(spec)
+
+
+def _detect_frames(frames, target, intrinsics, drawings_dir=None):
+    """Detects the target in every frame, the same way for image files and bag images: an
+    unreadable image, or one of another size than the intrinsics', is skipped with the reason;
+    with ``drawings_dir`` (an ``apps.outputs.OutputDir``) each image is written with the
+    detection drawn. Only the points of each detection are kept, never the image.
+
+    Returns (records in frame order, [(record index, TargetDetection)] of the found ones)."""
+    from ...vision.detection import detect_target, draw_detection
+    records, found = [], []
+    for f in frames:
+        rec = f.record
+        records.append(rec)
+        if f.image is None:
+            continue
+        if f.image.shape[:2] != (intrinsics.height, intrinsics.width):
+            rec.reason = (f"image is {f.image.shape[1]}×{f.image.shape[0]}, the intrinsics are "
+                          f"for {intrinsics.width}×{intrinsics.height}")
+            continue
+        det = detect_target(f.image, target, intrinsics)
+        rec.found, rec.reason = det.found, det.reason or det.note
+        rec.reprojection_rms_px, rec.num_points = det.reprojection_rms_px, len(det.ids)
+        if drawings_dir is not None:
+            import cv2
+            out = drawings_dir.path(f.drawing)
+            cv2.imwrite(str(out), draw_detection(f.image, det, intrinsics))
+            rec.drawing = str(out)
+        if det.found:
+            found.append((len(records) - 1, det))
+    return records, found
+
+
+def _require_found(records, found, target_spec, what: str):
+    if len(found) < 3:
+        raise ValueError(f"{what}: the target {target_spec} was found in only {len(found)} of "
+                         f"{len(records)} images (≥ 3 needed): " + "; ".join(
+                             f"{r.label()}: {r.reason}" for r in records if not r.found)[:400])
+
+
 def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fmt=None,
                   robot_translation_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
                   drawings_dir=None) -> Streams:
@@ -233,9 +364,9 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     Images where the target is not found are skipped, with the reason. Without
     ``intrinsics_spec`` the intrinsics are calibrated from the same images first.
     ``drawings_dir``: an ``apps.outputs.OutputDir`` to write each image with the detection drawn.
+    The images are read from disk as they are needed (twice when the intrinsics are calibrated
+    from them), never all held in memory.
     """
-    from ...vision.detection import detect_target, draw_detection
-    from ...vision.intrinsics import load_intrinsics
     from ...vision.targets import parse_target
     target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
     paths = image_paths(image_specs)
@@ -245,63 +376,19 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     if len(paths) != len(robot):
         raise ValueError(f"--images, --robot: {len(paths)} images but {len(robot)} robot poses "
                          f"in {robot_path}; images pair with poses in order, one each")
-    images, reasons = [], {}
-    for k, p in enumerate(paths):
-        image, why = _read_image(p)
-        images.append(image)
-        if image is None:
-            reasons[k] = why
-    readable = [im for im in images if im is not None]
-    if not readable:
-        raise ValueError("--images: no image could be read (" + "; ".join(
-            f"{paths[k].name}: {r}" for k, r in list(reasons.items())[:3]) + ")")
-    intrinsics_note = ""
+    w, h = _first_size(_file_frames(paths, robot), "--images")
+    intrinsics_note, intrinsics_std = "", None
     if intrinsics_spec is not None:
-        h, w = readable[0].shape[:2]
-        intrinsics = load_intrinsics(intrinsics_spec, width=w, height=h) \
-            if "," in str(intrinsics_spec) and not Path(str(intrinsics_spec)).exists() \
-            else load_intrinsics(intrinsics_spec)
+        intrinsics = _given_intrinsics(intrinsics_spec, w, h)
     else:
-        h, w = readable[0].shape[:2]
-        rough = _provisional_intrinsics(w, h)
-        first = [detect_target(im, target, rough) for im in images
-                 if im is not None and im.shape[:2] == (h, w)]
-        intrinsics, rms, intrinsics_std = calibrate_intrinsics(first, w, h)
-        intrinsics_note = (f"intrinsics calibrated from the images (cv2.calibrateCamera on "
-                           f"{sum(len(d.ids) >= 6 for d in first)} images): RMS {rms:.3f} px, "
-                           f"fx {intrinsics.alpha_u:.1f} ± {intrinsics_std[0]:.2f} px; their "
-                           "uncertainty is added to the result's σ")
-    records, poses, keep, found = [], [], [], []
-    for k, (p, image) in enumerate(zip(paths, images)):
-        line = int(robot.lines[k])
-        if image is None:
-            records.append(ImageRecord(str(p), line, False, reasons[k]))
-            continue
-        if image.shape[:2] != (intrinsics.height, intrinsics.width):
-            records.append(ImageRecord(
-                str(p), line, False, f"image is {image.shape[1]}×{image.shape[0]}, the "
-                f"intrinsics are for {intrinsics.width}×{intrinsics.height}"))
-            continue
-        det = detect_target(image, target, intrinsics)
-        rec = ImageRecord(str(p), line, det.found, det.reason or det.note,
-                          det.reprojection_rms_px, len(det.ids))
-        if drawings_dir is not None:
-            import cv2
-            out = drawings_dir.path(f"detections/{p.stem}.png")
-            cv2.imwrite(str(out), draw_detection(image, det, intrinsics))
-            rec.drawing = str(out)
-        records.append(rec)
-        if det.found:
-            poses.append(det.X_CT)
-            keep.append(k)
-            found.append(det)
-    if len(keep) < 3:
-        raise ValueError(f"--images: the target {target_spec} was found in only {len(keep)} of "
-                         f"{len(paths)} images (≥ 3 needed): " + "; ".join(
-                             f"{Path(r.path).name}: {r.reason}" for r in records
-                             if not r.found)[:400])
-    camera = pose_stream(np.array(poses), None, source=f"images ({len(paths)})",
-                         lines=[k + 1 for k in keep])
+        intrinsics, intrinsics_std, intrinsics_note = _self_calibrated(
+            _file_frames(paths, robot), target, w, h)
+    records, found = _detect_frames(_file_frames(paths, robot), target, intrinsics,
+                                    drawings_dir)
+    _require_found(records, found, target_spec, "--images")
+    keep = [k for k, _ in found]
+    camera = pose_stream(np.array([d.X_CT for _, d in found]), None,
+                         source=f"images ({len(paths)})", lines=[k + 1 for k in keep])
     robot_kept = PoseStream(robot.poses[keep], None, robot.source,
                             tuple(int(robot.lines[k]) for k in keep), robot.sha256)
     inputs = {"images": {"count": len(paths), "detected": len(keep), "target": str(target_spec),
@@ -309,7 +396,111 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
                          "calibrated from the images", "intrinsics_note": intrinsics_note},
               "robot": {"path": str(robot_path), "sha256": robot.sha256, "samples": len(robot),
                         "format": robot_fmt}}
-    resampler = None if intrinsics_spec is not None else _resampler(found, intrinsics,
-                                                                     intrinsics_std)
+    resampler = None if intrinsics_std is None else _resampler([d for _, d in found], intrinsics,
+                                                               intrinsics_std)
     return Streams(robot_kept, camera, inputs, ("robot",) if robot_fmt == "tum" else (),
                    records, intrinsics, resampler)
+
+
+#: Default of ``--max-images``: detection costs ~15 ms per 640×480 frame.
+DEFAULT_MAX_IMAGES = 500
+
+
+def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrinsics_spec=None,
+                      camera_info_topic: str | None = None,
+                      max_images: int | None = DEFAULT_MAX_IMAGES,
+                      drawings_dir=None) -> Streams:
+    """Robot poses from tf and camera poses from the target detected in the images of a bag
+    (ROS 1 ``.bag``, ROS 2 directory, ``.db3`` or ``.mcap``): X_BE is the pose of
+    ``robot_frames[1]`` in ``robot_frames[0]``; each image whose target is found gives X_CT at
+    its header stamp. The pairing in time (robot pose interpolated at the stamps, clock offset
+    estimated and refined) is ``calibrate_streams``'s, as for a pose topic.
+
+    Intrinsics: ``intrinsics_spec`` (as ``--intrinsics``), else the ``CameraInfo`` on
+    ``camera_info_topic`` (default: ``camera_info`` beside the image topic, e.g.
+    ``/cam/color/camera_info`` for ``/cam/color/image_raw[/compressed]``; ``"none"`` to ignore
+    it), else calibrated from the images with their uncertainty (as for image files).
+
+    Memory: images are streamed, decoded, detected and dropped; at most ``max_images`` (evenly
+    spaced over the topic, None: all) are read. Raises ValueError naming the option at fault.
+    """
+    from ...recorded.bags import (CAMERA_INFO_TYPE, bag_topics, find_camera_info, read_bag,
+                                  require_topic)
+    from ...vision.targets import parse_target
+    if max_images is not None and (isinstance(max_images, bool) or not isinstance(
+            max_images, (int, np.integer)) or max_images < 3):
+        raise ValueError(f"--max-images: expected an integer ≥ 3, got {max_images!r}")
+    target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
+    frames = _frames(robot_frames, "--robot-frames")
+    topics = bag_topics(path)
+    require_topic(str(path), topics, image_topic, ("sensor_msgs/msg/Image",
+                                                   "sensor_msgs/msg/CompressedImage"),
+                  "--image-topic")
+    notes = []
+    info_topic = None
+    if camera_info_topic is None:
+        info_topic = find_camera_info(image_topic, topics, only_beside=True)
+        others = sorted(t for t, (typ, _) in topics.items() if typ == CAMERA_INFO_TYPE)
+        if info_topic is None and others and intrinsics_spec is None:
+            notes.append(f"no camera_info beside {image_topic} (CameraInfo topics: "
+                         f"{', '.join(others)}; --camera-info-topic uses one)")
+    elif camera_info_topic.lower() != "none":
+        info_topic = require_topic(str(path), topics, camera_info_topic, (CAMERA_INFO_TYPE,),
+                                   "--camera-info-topic")
+    data = read_bag(path, frames, camera_info_topic=None if intrinsics_spec else info_topic)
+    count = topics[image_topic][1]
+
+    def stream():
+        return _bag_frames(path, image_topic, max_images)
+
+    w, h = _first_size(stream(), f"--image-topic {image_topic}")
+    intrinsics_std, source = None, None
+    info = data.camera_info
+    if intrinsics_spec is not None:
+        intrinsics, source = _given_intrinsics(intrinsics_spec, w, h), "--intrinsics"
+        how = str(intrinsics_spec)
+    elif info is not None and info.calibrated:
+        intrinsics = info.intrinsics(f"--camera-info-topic {info_topic}")
+        source, how = f"--camera-info-topic {info_topic}: CameraInfo", f"CameraInfo {info_topic}"
+        notes.append(f"intrinsics from the CameraInfo on {info_topic} ({info.width}×"
+                     f"{info.height}, {info.distortion_model or 'no distortion model'})")
+    else:
+        if info is not None:
+            notes.append(f"CameraInfo on {info_topic} has K = 0 (an uncalibrated camera)")
+        intrinsics, intrinsics_std, note = _self_calibrated(stream(), target, w, h)
+        notes.append(note)
+        how = "calibrated from the images"
+    if source is not None and (intrinsics.width, intrinsics.height) != (w, h):
+        raise ValueError(f"{source} is for {intrinsics.width}×{intrinsics.height} images, the "
+                         f"images on {image_topic} are {w}×{h}")
+    used = min(count, max_images) if max_images is not None else count
+    if used < count:
+        notes.insert(0, f"{used} of the {count} images on {image_topic} used, evenly spaced "
+                        f"over the bag (--max-images {max_images})")
+    records, found = _detect_frames(stream(), target, intrinsics, drawings_dir)
+    _require_found(records, found, target_spec, f"--image-topic {image_topic}")
+    # Stamps order the camera stream; an image stamped like an earlier one is not a new sample.
+    found.sort(key=lambda kd: (records[kd[0]].stamp, kd[0]))
+    kept, last = [], None
+    for k, det in found:
+        rec = records[k]
+        if rec.stamp == last:
+            rec.found = False
+            rec.reason = "same header stamp as an earlier image"
+            continue
+        kept.append((k, det))
+        last = rec.stamp
+    _require_found(records, kept, target_spec, f"--image-topic {image_topic}")
+    camera = pose_stream(np.array([d.X_CT for _, d in kept]),
+                         [records[k].stamp for k, _ in kept], source=f"{path}[{image_topic}]",
+                         lines=[records[k].message for k, _ in kept])
+    inputs = {"bag": {"path": str(path), "robot_frames": list(frames),
+                      "camera": f"{image_topic} (target detected in the images)",
+                      "robot_samples": len(data.robot), "camera_samples": len(camera)},
+              "images": {"topic": image_topic, "messages": count, "count": len(records),
+                         "detected": len(kept), "max_images": max_images,
+                         "target": str(target_spec), "intrinsics": how,
+                         "intrinsics_note": "; ".join(notes + data.warnings)}}
+    resampler = None if intrinsics_std is None else _resampler([d for _, d in kept], intrinsics,
+                                                               intrinsics_std)
+    return Streams(data.robot, camera, inputs, (), records, intrinsics, resampler)
