@@ -15,7 +15,6 @@ each task builds its diagram inside its worker).
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import logging
 import multiprocessing
@@ -23,28 +22,20 @@ import os
 import signal
 from concurrent.futures import ProcessPoolExecutor
 
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
+from .argtypes import positive_int
 
 
 def add_executor_arguments(parser, default_workers: int | None = None,
                            workers_help: str | None = None) -> None:
     """Adds ``--workers``, ``--scheduler`` and ``--dask-local`` to an argparse parser."""
     default = default_workers if default_workers is not None else (os.cpu_count() or 1)
-    parser.add_argument("--workers", type=_positive_int, default=default, metavar="N",
+    parser.add_argument("--workers", type=positive_int, default=default, metavar="N",
                         help=workers_help or f"local worker processes (default {default}; 1 "
                         "runs in this process)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run on a Dask distributed cluster: its scheduler's address "
                              "(tcp://HOST:8786)")
-    parser.add_argument("--dask-local", type=_positive_int, metavar="N",
+    parser.add_argument("--dask-local", type=positive_int, metavar="N",
                         help="start a Dask LocalCluster of N worker processes and run on it")
 
 

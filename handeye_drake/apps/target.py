@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .argtypes import non_negative_float, positive_float
 from .outputs import check_output_file
 
 
@@ -31,26 +32,6 @@ def run_target(args) -> int:
     return 0
 
 
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not (v > 0 and v < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return v
-
-
-def _non_negative(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number ≥ 0, got {text!r}") from None
-    if not (0 <= v < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a number ≥ 0, got {text!r}")
-    return v
-
-
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Adds the ``target`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser(
@@ -63,8 +44,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("spec", metavar="SPEC", help="the target, e.g. chessboard:9x6:0.0236")
     p.add_argument("--out", required=True, metavar="FILE.png",
                    help="the PNG to write (FILE.svg and FILE.pdf are written beside it)")
-    p.add_argument("--dpi", type=_positive, default=300.0, help="PNG resolution (default 300)")
-    p.add_argument("--margin", type=_non_negative, default=0.01, metavar="METRES",
+    p.add_argument("--dpi", type=positive_float, default=300.0, help="PNG resolution (default 300)")
+    p.add_argument("--margin", type=non_negative_float, default=0.01, metavar="METRES",
                    help="white margin around the pattern (default 0.01)")
     p.add_argument("--force", action="store_true", help="overwrite existing files")
     p.set_defaults(func=run_target)

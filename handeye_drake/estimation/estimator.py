@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from . import defaults
-from .se3 import inverse, inverse_tangent_jacobian, rotation_log
+from .se3 import inverse, inverse_tangent_jacobian, rotation_angle, rotation_log
 
 
 class OnlineEstimator(Protocol):
@@ -196,6 +196,23 @@ class EstimatorBase:
         self._nis_sum = float(c["nis_sum"][0])
         self._nis_count = int(c["nis_count"][0])
         self._excitation = Excitation(c["excitation"])
+
+    def _motion_since_previous(self, X_BE, X_CT):
+        """For the motion-pair filters: (A, B) from the previous usable sample to this one, or
+        None for the first sample and for motions rotating less than ``self._min_rotation``
+        (counted as skipped). A uses a general inverse: measured poses may be non-orthonormal
+        (coefficient noise, or poses chained from noisy motions). The caller stores
+        ``self._prev`` once it has used the motion."""
+        if self._prev is None:
+            self._prev = (X_BE, X_CT)
+            self._num_skipped += 1
+            return None
+        X_BE0, X_CT0 = self._prev
+        B = inverse(X_BE0) @ X_BE
+        if self._min_rotation and rotation_angle(B[:3, :3]) < self._min_rotation:
+            self._num_skipped += 1
+            return None
+        return X_CT0 @ np.linalg.inv(X_CT), B
 
     # ------------------------------------------------------------------------ the estimate
     @property

@@ -23,14 +23,7 @@ from .estimator import EstimatorBase, VectorLayout
 from .linear_model import linear_system_matrices, state_from_transform
 from .manifold import _eye, gate_threshold
 from .orthonormalize import orthonormalize_unchecked
-from .se3 import (
-    inverse,
-    make_transform,
-    pose_to_vector,
-    rotation_angle,
-    rotation_log,
-    vector_to_pose,
-)
+from .se3 import make_transform, pose_to_vector, rotation_log, vector_to_pose
 from .validation import as_transform, check_covariance, check_noisy_rotation, check_positive
 
 #: Values of ``PaperFilter.noise_covariance``.
@@ -236,17 +229,10 @@ class HandEyeKalmanFilter(EstimatorBase):
         return self._update(X_BE, X_CT)
 
     def _update(self, X_BE, X_CT) -> bool:
-        if self._prev is None:
-            self._prev = (X_BE, X_CT)
-            self._num_skipped += 1
+        motion = self._motion_since_previous(X_BE, X_CT)
+        if motion is None:
             return False
-        X_BE0, X_CT0 = self._prev
-        B = inverse(X_BE0) @ X_BE
-        if self._min_rotation and rotation_angle(B[:3, :3]) < self._min_rotation:
-            self._num_skipped += 1
-            return False
-        # The measured pose may be non-orthonormal (coefficient noise): general inverse.
-        fused = self._update_motion(X_CT0 @ np.linalg.inv(X_CT), B)
+        fused = self._update_motion(*motion)
         self._prev = (X_BE, X_CT)
         return fused
 

@@ -36,7 +36,6 @@ from .se3 import (
     make_transform,
     pose_to_vector,
     retract_pose,
-    rotation_angle,
     rotation_log,
     skew,
     vector_to_pose,
@@ -356,18 +355,10 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
         return self._update(*_check_sample(X_BE, X_CT))
 
     def _update(self, X_BE, X_CT) -> bool:
-        if self._prev is None:
-            self._prev = (X_BE, X_CT)
-            self._num_skipped += 1
+        motion = self._motion_since_previous(X_BE, X_CT)
+        if motion is None:
             return False
-        X_BE0, X_CT0 = self._prev
-        B = inverse(X_BE0) @ X_BE
-        if self._min_rotation and rotation_angle(B[:3, :3]) < self._min_rotation:
-            self._num_skipped += 1
-            return False
-        # General inverse: measured poses may be non-orthonormal (coefficient noise, or poses
-        # chained from noisy motions); the motion's rotation is projected afterwards.
-        A = X_CT0 @ np.linalg.inv(X_CT)
+        A, B = motion
         fused = self._update_motion(orthonormalize_unchecked(A[:3, :3], "svd"), A[:3, 3], B)
         self._prev = (X_BE, X_CT)
         return fused

@@ -16,6 +16,7 @@ import math
 
 from ...estimation.solvers import METHODS
 from ...recorded.formats import FORMATS, MAX_TRANSLATION
+from ..argtypes import positive_float
 from ..outputs import prepare_output_dir
 from .inputs import (DEFAULT_MAX_IMAGES, QUATERNION_ORDERS, bag_image_streams, bag_streams,
                      file_streams, image_streams)
@@ -45,16 +46,6 @@ def _noise_arg(text: str):
     if not (deg > 0 and mm > 0 and math.isfinite(deg) and math.isfinite(mm)):
         raise argparse.ArgumentTypeError(f"expected two positive numbers, got {text!r}")
     return deg, mm / 1000.0
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return v
 
 
 def _max_images_arg(text: str):
@@ -101,15 +92,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         fmt.add_argument(f"--{which}-quaternion-order", choices=QUATERNION_ORDERS,
                          default="xyzw", help=f"quaternion order of the {which} TUM file "
                          "(TUM is x y z w; some tools write w x y z)")
-    fmt.add_argument("--translation-scale", type=_positive_float, default=None, metavar="F",
+    fmt.add_argument("--translation-scale", type=positive_float, default=None, metavar="F",
                      help="multiply every translation of both files (0.001 for millimetres)")
     for which in ("robot", "camera"):
-        fmt.add_argument(f"--{which}-translation-scale", type=_positive_float, default=None,
+        fmt.add_argument(f"--{which}-translation-scale", type=positive_float, default=None,
                          metavar="F", help=f"multiply the {which} file's translations")
-    fmt.add_argument("--max-translation", type=_positive_float, default=MAX_TRANSLATION,
+    fmt.add_argument("--max-translation", type=positive_float, default=MAX_TRANSLATION,
                      metavar="METRES", help=f"refuse translations longer than this (default "
                      f"{MAX_TRANSLATION:g}; a units check)")
-    fmt.add_argument("--time-scale", type=_positive_float, default=1.0, metavar="F",
+    fmt.add_argument("--time-scale", type=positive_float, default=1.0, metavar="F",
                      help="multiply every timestamp (1e-9 for nanoseconds, 1e-3 for ms)")
     bag = p.add_argument_group("ROS bags")
     bag.add_argument("--robot-frames", default="base_link:tool0", metavar="BASE:EE",
@@ -151,7 +142,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      metavar="auto|SECONDS",
                      help="camera stamp − robot time of the same instant, or 'auto' (default: "
                           "auto when both streams have timestamps)")
-    est.add_argument("--time-offset-range", type=_positive_float, default=0.5,
+    est.add_argument("--time-offset-range", type=positive_float, default=0.5,
                      metavar="SECONDS", help="search range ± of the offset (default 0.5)")
     est.add_argument("--min-rotation", type=float, default=5.0, metavar="DEG",
                      help="smallest rotation of a motion used by the classical start (default 5)")
@@ -168,7 +159,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     chk.add_argument("--max-noise", type=_noise_arg, default=(1.0, 0.01), metavar="DEG,MM",
                      help="largest plausible per-axis noise of a camera pose (default 1,10): "
                           "larger residuals FAIL")
-    chk.add_argument("--max-hand-eye-distance", type=_positive_float, default=None,
+    chk.add_argument("--max-hand-eye-distance", type=positive_float, default=None,
                      metavar="METRES", help="largest plausible camera distance from the "
                      "flange (default 0.5; 5 for eye-to-hand, from the base)")
     chk.add_argument("--strict", action="store_true",

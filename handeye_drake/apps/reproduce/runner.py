@@ -30,6 +30,7 @@ from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..argtypes import non_negative_int, positive_int
 from ..executors import add_executor_arguments, make_executor
 from ..outputs import prepare_output_dir
 from ..progress import progress_bar
@@ -235,27 +236,6 @@ def reproduce(figures=("all",), runs: int | None = None, seed: int = 0, workers:
 # ---------------------------------------------------------------------------------------------
 # Command line.
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") \
-            from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return v
-
-
 def _figure_name(text: str) -> str:
     if text not in ALL_FIGURES and text != "all":
         raise argparse.ArgumentTypeError(f"unknown figure {text!r}; choose from "
@@ -292,10 +272,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     # against choices (Python < 3.12).
     p.add_argument("figures", nargs="*", type=_figure_name, default=["all"], metavar="FIGURE",
                    help=f"figures to reproduce: {', '.join(ALL_FIGURES)} or all (default all)")
-    p.add_argument("--runs", type=_positive_int,
+    p.add_argument("--runs", type=positive_int,
                    help="simulations per level (default: the paper's — 50 for Figs 3–8, 500 "
                         "for Fig. 9; 1000 matrices for Fig. 2, 10 closed-loop runs for Fig. 10)")
-    p.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="base seed (default 0)")
     add_executor_arguments(p, workers_help="local worker processes (default: the number of "
                            "CPUs)")
     p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
@@ -305,7 +285,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="write into a non-empty --out that is not this command's output "
                         "(never overwriting files the tool did not write)")
-    p.add_argument("--motions", type=_positive_int,
+    p.add_argument("--motions", type=positive_int,
                    help="robot motions per run in Figs 3–8 (default 100)")
     p.add_argument("--duration", type=float,
                    help="simulated seconds of each Fig. 10 run (default: the scenario's 12 s)")
