@@ -96,9 +96,9 @@ def test_per_axis_weighting_beats_isotropic_and_its_covariance_is_honest():
         axes_sq.append(e_axes**2)
         nees.append(e_axes @ np.linalg.solve(axes.covariance, e_axes))
     rms_iso, rms_axes = np.sqrt(np.mean(iso_sq, 0)), np.sqrt(np.mean(axes_sq, 0))
-    # Translation of X_CE (dominated by the depth noise): clearly better; rotation: not worse.
+    # Both clearly better (measured: 0.61 and 0.64 of the isotropic RMS error).
     assert np.linalg.norm(rms_axes[3:]) < 0.8 * np.linalg.norm(rms_iso[3:])
-    assert np.linalg.norm(rms_axes[:3]) < 1.0 * np.linalg.norm(rms_iso[:3])
+    assert np.linalg.norm(rms_axes[:3]) < 0.8 * np.linalg.norm(rms_iso[:3])
     lo, hi = chi2.ppf([0.0005, 0.9995], 6 * 150) / 150
     assert lo < np.mean(nees) < hi
 
