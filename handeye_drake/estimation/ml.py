@@ -31,7 +31,11 @@ Two forms:
 - ``refine_ml_poses``: synchronized raw poses (X_BE_k, X_CT_k), AX = ZB:
   X_CT = X_CE · X_BE⁻¹ · X_BT, unknowns X_CE and the fixed target pose X_BT (12 parameters).
   The noise is on each measured pose (``apply_pose_noise``'s models): each measurement enters
-  once with white noise. This is the ML reference for the closed-loop data.
+  once with white noise. This is the ML reference for the closed-loop data. Under "so3" the
+  noise may be anisotropic: per-axis standard deviations about / along the camera frame C's
+  axes (a diagonal 6×6 covariance Σ_C; a camera's PnP pose is typically several times worse in
+  depth than laterally), or one full 6×6 covariance per sample (a detector's); the residual of
+  sample k is then whitened by the Cholesky factor of its covariance, L_k⁻¹ r_k.
 
 Parametrization (the convention of ``manifold``): X = (exp(δθ) R̂, t̂ + δt), error state
 [δθ (rad); δt (length)], so ``covariance`` is directly comparable with
@@ -54,7 +58,8 @@ from scipy.stats import chi2
 
 from .se3 import inverse, inverse_tangent_jacobian, make_transform, rotation_exp
 from .solvers import METHODS, MIN_ROTATION_ANGLE, solve_ax_xb
-from .validation import as_transform, as_transform_list, check_positive, check_same_length
+from .validation import (as_matrix, as_transform, as_transform_list, check_positive,
+                         check_same_length)
 
 NOISE_MODELS = ("so3", "paper")
 
@@ -220,11 +225,21 @@ def _pose_prediction(X_CE, X_BT, R_EB, t_EB):
     return R_CT, t_CT, u
 
 
-def _pose_terms(est, data, noise_model, sr, st):
-    """(r, H) of the pose form at est = (X_CE, X_BT); H w.r.t. [δθ_CE; δt_CE; δθ_BT; δt_BT]."""
+def _axis_scale(s):
+    """A per-axis σ (3,) as a column (3, 1) for dividing Jacobian rows; a scalar unchanged."""
+    s = np.asarray(s, dtype=float)
+    return s[:, None] if s.ndim else float(s)
+
+
+def _pose_terms(est, data, noise_model, sr, st, W=None):
+    """(r, H) of the pose form at est = (X_CE, X_BT); H w.r.t. [δθ_CE; δt_CE; δθ_BT; δt_BT].
+    sr, st: scalars or per-axis (3,) σ about / along C's axes; ``W`` (K, 6, 6): per-sample
+    whitening matrices (then sr, st are ignored; "so3" only)."""
     X_CE, X_BT = est
     R_CTm, R_CTp, t_CTm, R_EB, t_EB = data
     K = len(R_EB)
+    if W is not None:
+        sr = st = 1.0
     R_CT, t_CT, u = _pose_prediction(X_CE, X_BT, R_EB, t_EB)
     R_CE_EB = X_CE[:3, :3][None] @ R_EB
     # Left perturbation of R̂_CT: ε = δθ_CE + R_CE R_EB δθ_BT.
@@ -234,17 +249,20 @@ def _pose_terms(est, data, noise_model, sr, st):
                          np.broadcast_to(np.eye(3), (K, 3, 3)), np.zeros((K, 3, 3)), R_CE_EB],
                         axis=2)
     r_t = (t_CTm - t_CT) / st
-    H_t = -dt / st
+    H_t = -dt / _axis_scale(st)
     if noise_model == "so3":
         phi = _rotvecs(R_CTp @ np.transpose(R_CT, (0, 2, 1)))
         r_r = phi / sr
-        H_r = -_right_jacobian_inverse(phi) @ deps / sr
+        H_r = -_right_jacobian_inverse(phi) @ deps / _axis_scale(sr)
     else:
         r_r = (R_CTm - R_CT).reshape(K, 9) / sr
         H_r = -_E_times(R_CT) @ deps / sr
-    r = np.concatenate([r_r, r_t], axis=1).reshape(-1)
-    H = np.concatenate([H_r, H_t], axis=1).reshape(-1, 12)
-    return r, H
+    r = np.concatenate([r_r, r_t], axis=1)
+    H = np.concatenate([H_r, H_t], axis=1)
+    if W is not None:
+        r = np.einsum("kij,kj->ki", W, r)
+        H = W @ H
+    return r.reshape(-1), H.reshape(-1, 12)
 
 
 def _pose_residual_summary(est, data):
@@ -323,11 +341,55 @@ def _result(X_CE, cov6, r, njev, residuals, X_BT=None, full_cov=None) -> MLResul
 # ---------------------------------------------------------------------------------------------
 # Input checks.
 
-def _check_noise(noise_model, rotation_sigma, translation_sigma):
+def _check_sigma(value, name: str, per_axis: bool):
+    """A positive finite scalar, or (``per_axis``) three of them (one per axis of C)."""
+    if per_axis and np.ndim(value) == 1:
+        v = as_matrix(value, name, (3,))
+        if not np.all(v > 0):
+            raise ValueError(f"{name}: per-axis standard deviations must be > 0, got "
+                             f"{np.array2string(v, precision=3)}")
+        return v
+    if np.ndim(value) > 0:
+        raise ValueError(f"{name}: expected a positive number" + (
+            " or 3 per-axis values" if per_axis else " (one σ: this form is isotropic)")
+            + f", got shape {np.shape(value)}")
+    return check_positive(value, name)
+
+
+def _check_noise(noise_model, rotation_sigma, translation_sigma, per_axis: bool = True):
+    """(σ_r, σ_t): scalars, or (per_axis) (3,) arrays about / along the camera's axes (a
+    scalar means isotropic). "paper" has one coefficient σ for the rotation."""
     if noise_model not in NOISE_MODELS:
         raise ValueError(f"noise_model: expected one of {NOISE_MODELS}, got {noise_model!r}")
-    return (check_positive(rotation_sigma, "rotation_sigma"),
-            check_positive(translation_sigma, "translation_sigma"))
+    sr = _check_sigma(rotation_sigma, "rotation_sigma", per_axis and noise_model == "so3")
+    return sr, _check_sigma(translation_sigma, "translation_sigma", per_axis)
+
+
+def pose_whitening(covariances, count: int, name: str = "covariances") -> np.ndarray:
+    """Whitening matrices W_k = L_k⁻¹ (K, 6, 6), Σ_k = L_k L_kᵀ (Cholesky), of per-sample 6×6
+    covariances of the camera pose error [δθ (rad, about C's axes); δt (m)]: W_k r_k is white.
+
+    Raises:
+        ValueError: ``name`` not (count, 6, 6), not finite, not symmetric or not positive
+            definite (naming the first bad sample).
+    """
+    C = as_matrix(covariances, name, (count, 6, 6))
+    asym = np.abs(C - np.transpose(C, (0, 2, 1))).max(axis=(1, 2))
+    scale = np.abs(C).max(axis=(1, 2))
+    bad = np.flatnonzero(asym > 1e-9 * np.maximum(scale, 1e-300))
+    if len(bad):
+        raise ValueError(f"{name}[{bad[0]}]: not symmetric")
+    C = 0.5 * (C + np.transpose(C, (0, 2, 1)))
+    W = np.empty_like(C)
+    for k, Ck in enumerate(C):
+        try:
+            L = np.linalg.cholesky(Ck)
+        except np.linalg.LinAlgError:
+            raise ValueError(f"{name}[{k}]: not positive definite") from None
+        W[k] = np.linalg.solve(L, np.eye(6))
+    if not np.all(np.isfinite(W)):
+        raise ValueError(f"{name}: a covariance is too ill-conditioned to whiten")
+    return W
 
 
 def _measured_rotations(X: list[np.ndarray], name: str, noise_model: str):
@@ -387,7 +449,7 @@ def refine_ml(A_list, B_list, X_CE_init, rotation_sigma: float, translation_sigm
             lengths, fewer than 2 motions, non-positive sigmas, unknown noise model, or motions
             that do not determine X (singular Fisher information).
     """
-    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma, per_axis=False)
     data = _motion_data(A_list, B_list, noise_model)
     X0 = as_transform(X_CE_init, "X_CE_init")
     return _refine_motions(data, X0, noise_model, sr, st)
@@ -437,7 +499,7 @@ def robust_initial_estimate(A_list, B_list, rotation_sigma: float, translation_s
             than 2 consistent motions; or the classical solver's errors on the kept motions
             (e.g. all rotation axes parallel).
     """
-    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma, per_axis=False)
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     try:
@@ -490,7 +552,7 @@ def cramer_rao_bound(A_list, B_list, X_CE, rotation_sigma: float, translation_si
     Raises:
         ValueError: as ``refine_ml``.
     """
-    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma, per_axis=False)
     data = _motion_data(A_list, B_list, noise_model)
     X = as_transform(X_CE, "X_CE")
     R_B, t_B = data[3], data[4]
@@ -502,25 +564,31 @@ def cramer_rao_bound(A_list, B_list, X_CE, rotation_sigma: float, translation_si
     return _covariance(H, "A_list, B_list")
 
 
-def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
-                    translation_sigma: float, noise_model: str = "so3",
-                    X_BT_init=None) -> MLResult:
+def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma, translation_sigma,
+                    noise_model: str = "so3", X_BT_init=None, covariances=None) -> MLResult:
     """Maximum-likelihood X_CE and target pose X_BT from synchronized poses (AX = ZB).
 
     Model: X_CT_k = X_CE · X_BE_k⁻¹ · X_BT ⊕ noise, with ``apply_pose_noise``'s models on the
-    measured target pose: "so3" (R_CT = exp(n_r) R̃_CT, n_r ~ N(0, σ_r² I3) rad) or "paper"
-    (additive N(0, σ_r²) on the 9 coefficients, raw measurement kept), and t_CT = t̃_CT + n_t.
-    Robot poses are exact. This is the reference for closed-loop data: every camera measurement
-    enters once with white noise (differencing poses into motions would correlate them).
+    measured target pose: "so3" (R_CT = exp(n_r) R̃_CT, n_r ~ N(0, diag(σ_r²)) rad about C's
+    axes) or "paper" (additive N(0, σ_r²) on the 9 coefficients, raw measurement kept), and
+    t_CT = t̃_CT + n_t, n_t ~ N(0, diag(σ_t²)) along C's axes. Robot poses are exact. This is
+    the reference for closed-loop data: every camera measurement enters once with white noise
+    (differencing poses into motions would correlate them).
 
     Args:
         X_BE_list: K ≥ 3 end-effector poses in the robot base (rigid).
         X_CT_list: the K measured target poses in the camera, same instants.
         X_CE_init: initial hand-eye estimate (4×4 rigid).
-        rotation_sigma, translation_sigma: the camera pose noise (see above).
+        rotation_sigma, translation_sigma: the camera pose noise (see above): a scalar
+            (isotropic) or, "so3" for the rotation, 3 per-axis values (rad about C's x, y, z;
+            m along them). Ignored when ``covariances`` is given (may then be None).
         noise_model: "so3" or "paper".
         X_BT_init: initial target pose; default the one implied by the first sample,
             X_BE_0 · X_CE_init⁻¹ · X_CT_0 (rotation projected on SO(3)).
+        covariances: optional (K, 6, 6) covariance of each measurement's error
+            [δθ (rad, about C's axes); δt (m)] ("so3" only), e.g. a detector's
+            (``vision.detection``'s ``covariance``); the residuals are whitened by its Cholesky
+            factor instead of the sigmas.
 
     Returns:
         ``MLResult`` with ``X_BT`` and the 12×12 ``full_covariance`` of
@@ -528,16 +596,23 @@ def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
 
     Raises:
         ValueError: malformed / non-finite inputs (naming the argument), lists of different
-            lengths, fewer than 3 samples, non-positive sigmas, unknown noise model, or poses
-            that do not determine X_CE (singular Fisher information).
+            lengths, fewer than 3 samples, non-positive sigmas, unknown noise model, bad
+            covariances (shape, symmetry, positive definiteness), or poses that do not
+            determine X_CE (singular Fisher information).
     """
-    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    if covariances is None:
+        sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    else:
+        if noise_model != "so3":
+            raise ValueError("covariances: per-sample covariances need noise_model 'so3'")
+        sr = st = 1.0
     X_BE = as_transform_list(X_BE_list, "X_BE_list", rigid=True)
     X_CT = as_transform_list(X_CT_list, "X_CT_list", rigid=(noise_model == "so3"))
     check_same_length(X_BE, "X_BE_list", X_CT, "X_CT_list")
     if len(X_BE) < 3:
         raise ValueError(f"X_BE_list, X_CT_list: need at least 3 samples (2 motions with "
                          f"non-parallel rotation axes), got {len(X_BE)}")
+    W = None if covariances is None else pose_whitening(covariances, len(X_BE))
     R_CTm, R_CTp = _measured_rotations(X_CT, "X_CT_list", noise_model)
     X_EB = [inverse(X) for X in X_BE]
     data = (R_CTm, R_CTp, np.array([x[:3, 3] for x in X_CT]), np.array([x[:3, :3] for x in X_EB]),
@@ -549,7 +624,7 @@ def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
         X_BT0 = as_transform(X_BT_init, "X_BT_init")
 
     def terms(est):
-        return _pose_terms(est, data, noise_model, sr, st)
+        return _pose_terms(est, data, noise_model, sr, st, W)
 
     (X_CE, X_BT), H, r, njev = _solve((X0, X_BT0), terms)
     cov = _covariance(H, "X_BE_list, X_CT_list")
@@ -557,7 +632,21 @@ def refine_ml_poses(X_BE_list, X_CT_list, X_CE_init, rotation_sigma: float,
                    X_BT=X_BT, full_cov=cov)
 
 
-def pose_jacobians(X_EB, X_CE, X_BT, rotation_sigma: float, translation_sigma: float,
+def pose_residual_vectors(X_EB, X_CT, X_CE, X_BT) -> np.ndarray:
+    """(K, 6) per sample: [log(R_CT R̂_CTᵀ) (rad, about C's axes); t_CT − t̂_CT (m, in C)], the
+    error of each measured target pose X_CT_k against the prediction X_CE · X_EB_k · X_BT in
+    the left-perturbation convention of the noise model (so that the noise covariance
+    estimated from them is the one ``refine_ml_poses`` takes). Inputs are (K, 4, 4) stacks
+    (X_CT rigid) and 4×4 poses; no validation (internal helper of the calibration pipeline)."""
+    X_EB = np.asarray(X_EB, dtype=float).reshape(-1, 4, 4)
+    X_CT = np.asarray(X_CT, dtype=float).reshape(-1, 4, 4)
+    R_CT, t_CT, _ = _pose_prediction(np.asarray(X_CE, float), np.asarray(X_BT, float),
+                                     X_EB[:, :3, :3], X_EB[:, :3, 3])
+    phi = _rotvecs(X_CT[:, :3, :3] @ np.transpose(R_CT, (0, 2, 1)))
+    return np.concatenate([phi, X_CT[:, :3, 3] - t_CT], axis=1)
+
+
+def pose_jacobians(X_EB, X_CE, X_BT, rotation_sigma, translation_sigma,
                    noise_model: str = "so3") -> np.ndarray:
     """Per-sample whitened Jacobians of the pose form at noise-free measurements.
 
@@ -574,7 +663,8 @@ def pose_jacobians(X_EB, X_CE, X_BT, rotation_sigma: float, translation_sigma: f
     Args:
         X_EB: (K, 4, 4) robot poses inverted (base in end-effector), rigid.
         X_CE, X_BT: the linearization point (4×4 rigid).
-        rotation_sigma, translation_sigma, noise_model: as ``refine_ml_poses``.
+        rotation_sigma, translation_sigma, noise_model: as ``refine_ml_poses`` (scalars or
+            per-axis).
 
     Returns:
         (K, m, 12) array, m = 6 ("so3") or 12 ("paper").

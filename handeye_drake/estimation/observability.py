@@ -51,7 +51,7 @@ from scipy.optimize import least_squares
 
 from .se3 import inverse_tangent_jacobian
 from .ml import (_check_noise, _measured_rotations, _pose_residual_summary,
-                 _pose_terms, left_jacobian, pose_jacobians)
+                 _pose_terms, left_jacobian, pose_jacobians, pose_whitening)
 from .se3 import inverse, make_transform, rotation_exp, rotation_from_rpy, rotation_log, rpy
 from .solvers import calibrate_hand_eye
 from .validation import as_transform, as_transform_list, check_positive, check_same_length
@@ -962,7 +962,8 @@ def _initial_guesses(Y, X_CT, fixed) -> list:
     return guesses
 
 
-def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8, t_prior=None):
+def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8, t_prior=None,
+               W=None):
     """LM in the chart, re-centred until the step vanishes. ``t_prior`` = (t0, σ): extra
     residuals (t_HC − t0)/σ on the free translation components, which pin directions the data
     leaves undetermined (otherwise LM may wander along them) and barely move the others."""
@@ -978,12 +979,12 @@ def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8, t_pr
         def fun(x, c=chart):
             X_HC, X_FT = c.poses(x)
             return np.concatenate([_pose_terms((inverse(X_HC), X_FT), data, noise_model, sr,
-                                               st)[0], prior(x, c)[0]])
+                                               st, W)[0], prior(x, c)[0]])
 
         def jac(x, c=chart):
             X_HC, X_FT = c.poses(x)
-            return np.vstack([_pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st)[1]
-                              @ c.tangent_map(x), prior(x, c)[1]])
+            return np.vstack([_pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st,
+                                          W)[1] @ c.tangent_map(x), prior(x, c)[1]])
 
         sol = least_squares(fun, np.zeros(chart.n), jac=jac, method="lm", xtol=1e-14,
                             ftol=1e-14, gtol=1e-14, max_nfev=100 * chart.n)
@@ -998,12 +999,12 @@ def _fit_fixed(chart: _FixedChart, data, noise_model, sr, st, max_rounds=8, t_pr
                              "yaw are not separately defined; fix a different angle")
     x0 = np.zeros(chart.n)
     X_HC, X_FT = chart.poses(x0)
-    r, H = _pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st)
+    r, H = _pose_terms((inverse(X_HC), X_FT), data, noise_model, sr, st, W)
     return chart, r, H, njev
 
 
 def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init, fixed, mode,
-                 translation_prior_std=None):
+                 translation_prior_std=None, covariances=None):
     """The best local ML fit (over the starting points) with ``fixed`` held; the information
     may be singular (unobservable directions then keep their starting values)."""
     Y = robot_side_poses(X_BE_list, mode)
@@ -1011,6 +1012,7 @@ def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init
     check_same_length(list(Y), "X_BE_list", X_CT, "X_CT_list")
     if len(Y) < 3:
         raise ValueError(f"X_BE_list, X_CT_list: need at least 3 samples, got {len(Y)}")
+    W = None if covariances is None else pose_whitening(covariances, len(Y))
     R_CTm, R_CTp = _measured_rotations(X_CT, "X_CT_list", noise_model)
     data = (R_CTm, R_CTp, np.array([x[:3, 3] for x in X_CT]), Y[:, :3, :3], Y[:, :3, 3])
     X_CT_p = [make_transform(R, x[:3, 3]) for R, x in zip(R_CTp, X_CT)]
@@ -1027,7 +1029,7 @@ def _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model, X_FT_init
             t_prior = None if translation_prior_std is None else \
                 (inverse(X_CH0)[:3, 3], translation_prior_std)
             chart, r, H, njev = _fit_fixed(_FixedChart(inverse(X_CH0), X_FT0, fixed), data,
-                                           noise_model, sr, st, t_prior=t_prior)
+                                           noise_model, sr, st, t_prior=t_prior, W=W)
         except ValueError:
             if len(starts) == 1:
                 raise
@@ -1082,9 +1084,9 @@ def recording_observability(X_BE_list, X_CT_list, rotation_sigma: float,
             X_CH, X_FT)
 
 
-def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float,
-                          translation_sigma: float, noise_model: str = "so3", X_FT_init=None,
-                          fixed=None, mode: str = "eye_in_hand") -> PartialMLResult:
+def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma, translation_sigma,
+                          noise_model: str = "so3", X_FT_init=None, fixed=None,
+                          mode: str = "eye_in_hand", covariances=None) -> PartialMLResult:
     """Maximum-likelihood hand-eye and target poses (``ml.refine_ml_poses``'s model) with
     components of the camera-in-holder pose X_HC held at known values: a partial calibration.
 
@@ -1100,11 +1102,14 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
         X_CH_init: starting hand-eye estimate (X_CE eye-in-hand, X_CB eye-to-hand), or None to
             start from the Daniilidis solution and, when the rotation axes are (nearly)
             parallel, a fan of starts about the common axis (the best fit is kept).
-        rotation_sigma, translation_sigma, noise_model: as ``ml.refine_ml_poses``.
+        rotation_sigma, translation_sigma, noise_model: as ``ml.refine_ml_poses`` (scalars, or
+            per-axis σ about / along the camera's axes).
         X_FT_init: starting target pose (X_BT / X_ET); default from the first sample.
         fixed: {component: value} (``COMPONENTS``, metres and radians) or a string for
             ``parse_fixed``; empty means the ordinary ML fit in this parametrization.
         mode: "eye_in_hand" or "eye_to_hand".
+        covariances: optional (K, 6, 6) per-sample camera pose covariances, as
+            ``ml.refine_ml_poses`` (they replace the sigmas).
 
     Returns:
         ``PartialMLResult``.
@@ -1115,10 +1120,15 @@ def refine_ml_poses_fixed(X_BE_list, X_CT_list, X_CH_init, rotation_sigma: float
             determine (the message names them; ``.report`` is the ``ObservabilityReport``).
     """
     mode = check_mode(mode)
-    sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    if covariances is None:
+        sr, st = _check_noise(noise_model, rotation_sigma, translation_sigma)
+    else:
+        if noise_model != "so3":
+            raise ValueError("covariances: per-sample covariances need noise_model 'so3'")
+        sr = st = 1.0
     fixed = parse_fixed(fixed) if isinstance(fixed, str) else check_fixed(fixed)
     chart, r, H, njev, data = _partial_fit(X_BE_list, X_CT_list, X_CH_init, sr, st, noise_model,
-                                           X_FT_init, fixed, mode)
+                                           X_FT_init, fixed, mode, covariances=covariances)
     x0 = np.zeros(chart.n)
     X_HC, X_FT = chart.poses(x0)
     X_CH = inverse(X_HC)

@@ -94,6 +94,10 @@ def test_the_example_is_calibrated_within_its_sigma(example):
     # the residuals also carry the robot pose interpolation).
     n = doc["noise_per_axis"]
     assert 0.07 < n["rotation_deg"] < 0.15 and 3e-4 < n["translation_m"] < 1.2e-3
+    # Per axis of the camera frame: the simulation's noise is isotropic.
+    assert all(0.07 < v < 0.15 for v in n["rotation_deg_xyz"])
+    assert all(3e-4 < v < 1.2e-3 for v in n["translation_m_xyz"])
+    assert doc["held_out_test"]["ratio"] < doc["held_out_test"]["bound_99.9%"]
     # Held-out samples fit like the fitted ones.
     fit, held = doc["residuals"]["fit"], doc["residuals"]["held_out"]
     assert held["count"] == round(0.2 * (fit["count"] + held["count"]))

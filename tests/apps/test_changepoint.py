@@ -63,3 +63,19 @@ def test_nothing_moves_in_good_recordings(seed, example):
         robot, camera, _ = synthetic_streams(0.02, seed=seed, duration=20.0)
         a = align_streams(robot, camera, 0.02)
     assert find_move(np.asarray(a.X_BE), np.asarray(a.X_CT)) is None
+
+
+def test_the_command_names_a_bumped_target(example, tmp_path, capsys):
+    from handeye_drake.apps.cli import main
+    from tests.apps.test_calibrate import _tum
+    n = len(example.camera.poses)
+    bump = make_transform(rotation_exp([0, 0, np.radians(0.3)]), [0.005, 0, 0])
+    P = example.camera.poses.copy()
+    P[n // 2:] = P[n // 2:] @ bump
+    camera = _tum(tmp_path / "camera.tum", example.camera.timestamps, P)
+    assert main(["calibrate", "--robot", str(DATA / "example_robot.tum"), "--camera", camera,
+                 "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    # The rewritten file has one header line: sample k is on line k + 2.
+    assert err.count("\n") == 1 and "likely cause: the target moved" in err
+    assert f"lines {n // 2 + 1} and {n // 2 + 2}" in err

@@ -10,11 +10,18 @@ Pipeline (``calibrate_streams``):
    solution (``recorded.selection``; ``method="auto"`` tries Park and Daniilidis and keeps the
    one the data fit best, so no single solver's blind spot — Tsai at 180° — decides).
 3. Maximum likelihood: AX = ZB on the raw poses of the inlying samples, the fixed pose (target in
-   the base, eye-in-hand; on the flange, eye-to-hand) estimated alongside, noise estimated from
-   the residuals (``estimation.ml.refine_ml_poses``; with ``fixed`` components held,
-   ``estimation.observability.refine_ml_poses_fixed``). 20 % of the samples are held out.
-4. Checks (``checks``): residuals against plausible measurement noise, held-out residuals
-   against the fit's, the estimate's σ against the spread of two independent halves, the
+   the base, eye-in-hand; on the flange, eye-to-hand) estimated alongside
+   (``estimation.ml.refine_ml_poses``; with ``fixed`` components held,
+   ``estimation.observability.refine_ml_poses_fixed``). The camera noise is estimated from the
+   residuals expressed in the camera frame C, per axis (a camera's pose is typically several
+   times worse in depth than laterally, and its rotation about the optical axis several times
+   better than about x and y): σ_i = 1.4826 · median |r_i| (robust), iterated with the fit and
+   the outlier test (whitened residual² beyond the χ²(6) quantile). With per-sample camera
+   covariances (``camera_covariances``, a detector's), those are used instead, scaled by one
+   factor estimated from the residuals (the median whitened residual²). 20 % of the samples
+   are held out.
+4. Checks (``checks``): residuals against plausible measurement noise, held-out whitened
+   residuals against the fit's (F-test), the estimate's σ against the spread of two independent halves, the
    plausibility of the result, observability, the time offset, outliers; and the usual
    mistakes tried as alternatives (quaternion order, swapped streams, inverted streams or the
    other mode, units, clock offset): when one explains the data far better, the verdict FAILs
@@ -35,7 +42,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
-from ...estimation.ml import refine_ml_poses
+from ...estimation.ml import (pose_jacobians, pose_residual_vectors, pose_whitening,
+                              refine_ml_poses)
 from ...estimation.observability import (ObservabilityReport, UnobservableError, check_fixed,
                                          observability_report, parse_fixed,
                                          recording_observability, refine_ml_poses_fixed)
@@ -44,8 +52,7 @@ from ...estimation.solvers import METHODS
 from ...recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
                                align_streams, estimate_time_offset)
 from ...recorded.consistency import (check_mode, fixed_pose_spread, implied_fixed_poses,
-                                     inverse_stack, mean_pose, noise_from_residuals,
-                                     pose_residuals)
+                                     inverse_stack, mean_pose, pose_residuals)
 from ...recorded.formats import PoseStream
 from ...recorded.selection import InconsistentMotions, RobustFit, robust_hand_eye
 
@@ -77,44 +84,153 @@ def fixed_name(mode: str) -> str:
     return "X_BT" if mode == "eye_in_hand" else "X_ET"
 
 
+#: Normal-distribution consistency constant of the median absolute value: σ = MAD_SCALE ·
+#: median |r| for zero-mean Gaussian r.
+MAD_SCALE = 1.482602218505602
+
+
+@dataclass
+class Noise:
+    """The camera pose noise a fit assumes, in the camera frame C (error state [δθ; δt] of X_CT,
+    R = exp([δθ]×) R̂): per-axis standard deviations, or per-sample covariances.
+
+    Attributes:
+        rotation: (3,) σ of δθ about C's x, y, z (rad).
+        translation: (3,) σ of δt along C's x, y, z (m).
+        covariances: None, or (M, 6, 6) covariances of every aligned sample (the given ones
+            times ``scale``²): they replace the per-axis σ in the fits and tests.
+        scale: the factor on the given per-sample standard deviations, estimated from the
+            residuals (None without per-sample covariances).
+    """
+    rotation: np.ndarray
+    translation: np.ndarray
+    covariances: np.ndarray | None = None
+    scale: float | None = None
+
+    @classmethod
+    def isotropic(cls, rotation_sigma, translation_sigma) -> "Noise":
+        return cls(np.broadcast_to(np.asarray(rotation_sigma, float), (3,)).copy(),
+                   np.broadcast_to(np.asarray(translation_sigma, float), (3,)).copy())
+
+    def subset(self, idx):
+        return None if self.covariances is None else self.covariances[idx]
+
+    def chi2(self, r: np.ndarray, idx) -> np.ndarray:
+        """Whitened squared residual (χ²(6) under the model) of residual vectors r (K, 6)
+        (``residual_vectors``) of the samples ``idx``."""
+        if self.covariances is None:
+            sigma = np.concatenate([self.rotation, self.translation])
+            return np.sum((r / sigma) ** 2, axis=1)
+        C = self.covariances[idx]
+        return np.einsum("ki,ki->k", r, np.linalg.solve(C, r[..., None])[..., 0])
+
+    def changed(self, other: "Noise", tolerance: float = 0.05) -> bool:
+        if self.scale is not None and other.scale is not None:
+            return abs(self.scale / other.scale - 1) > tolerance
+        a = np.concatenate([self.rotation, self.translation])
+        b = np.concatenate([other.rotation, other.translation])
+        return bool(np.any(np.abs(a / b - 1) > tolerance))
+
+
 @dataclass
 class Fit:
     """A maximum-likelihood fit of AX = ZB on a set of samples (robot side, see
     ``recorded.consistency``): X_H (hand-eye), X_F (fixed pose), their covariances, the noise
-    it assumed (rad, m per axis) and its whitened cost."""
+    it assumed (``Noise``: per axis of the camera frame, or per sample) and its whitened cost."""
     X_H: np.ndarray
     X_F: np.ndarray
     covariance: np.ndarray          # 6×6 of X_H's error, about/along H's axes
     fixed_covariance: np.ndarray    # 6×6 of X_F's error
-    rotation_sigma: float
-    translation_sigma: float
+    noise: Noise
     cost: float
     dof: int
     parameters: dict | None = None  # with fixed components: tx..yaw and their stds
     parameter_std: dict | None = None
+
+    @property
+    def rotation_sigmas(self) -> np.ndarray:
+        """(3,) rad about the camera's x, y, z."""
+        return self.noise.rotation
+
+    @property
+    def translation_sigmas(self) -> np.ndarray:
+        """(3,) m along the camera's x, y, z."""
+        return self.noise.translation
+
+    @property
+    def rotation_sigma(self) -> float:
+        """The isotropic equivalent (RMS over the axes) of ``rotation_sigmas`` (rad)."""
+        return float(np.sqrt(np.mean(self.noise.rotation ** 2)))
+
+    @property
+    def translation_sigma(self) -> float:
+        """The isotropic equivalent (RMS over the axes) of ``translation_sigmas`` (m)."""
+        return float(np.sqrt(np.mean(self.noise.translation ** 2)))
 
 
 #: Noise (rad, m) assumed by the start of a fit with held components; the fit re-estimates it.
 START_SIGMAS = (0.002, 0.001)
 
 
-def ml_fit(X_R, X_CT, X_H0, rotation_sigma, translation_sigma, fixed=None, X_F0=None) -> Fit:
-    """Maximum-likelihood fit with the given noise (robot-side poses X_R: X_BE or X_EB).
-    ``X_H0`` None (only with ``fixed``): started from a fan of classical starts."""
+def ml_fit(X_R, X_CT, X_H0, rotation_sigma, translation_sigma, fixed=None, X_F0=None,
+           covariances=None) -> Fit:
+    """Maximum-likelihood fit with the given noise (robot-side poses X_R: X_BE or X_EB):
+    σ scalars (isotropic) or per-axis (3,) about / along the camera's axes, or per-sample
+    ``covariances`` (K, 6, 6) instead. ``X_H0`` None (only with ``fixed``): started from a fan
+    of classical starts."""
+    if covariances is None:
+        noise = Noise.isotropic(rotation_sigma, translation_sigma)
+    else:
+        d = np.sqrt(np.median(np.diagonal(covariances, axis1=1, axis2=2), axis=0))
+        noise = Noise(d[:3], d[3:], np.asarray(covariances, float), 1.0)
+    return _ml_fit(X_R, X_CT, X_H0, noise, None, fixed, X_F0)
+
+
+def _ml_fit(X_R, X_CT, X_H0, noise: Noise, idx, fixed=None, X_F0=None) -> Fit:
+    """``ml_fit`` of the samples X_R, X_CT (already the subset ``idx`` of the aligned samples
+    that ``noise.covariances`` indexes; idx None: all of them)."""
     X_R, X_CT = list(X_R), list(X_CT)
     X_CH0 = None if X_H0 is None else inverse(X_H0)
+    C = noise.covariances if idx is None else noise.subset(idx)
     if fixed:
-        r = refine_ml_poses_fixed(X_R, X_CT, X_CH0, rotation_sigma, translation_sigma,
-                                  X_FT_init=X_F0, fixed=fixed)
+        r = refine_ml_poses_fixed(X_R, X_CT, X_CH0, noise.rotation, noise.translation,
+                                  X_FT_init=X_F0, fixed=fixed, covariances=C)
         X_H = r.X_HC
         cov = r.X_HC_covariance
         cov_F = r.full_covariance[6:, 6:]
-        return Fit(X_H, r.X_FT, 0.5 * (cov + cov.T), cov_F, rotation_sigma, translation_sigma,
-                   r.cost, r.dof, dict(r.parameters), dict(r.parameter_std))
-    r = refine_ml_poses(X_R, X_CT, X_CH0, rotation_sigma, translation_sigma, "so3",
-                        X_BT_init=X_F0)
-    return Fit(r.X_EC, r.X_BT, r.X_EC_covariance, r.full_covariance[6:, 6:], rotation_sigma,
-               translation_sigma, r.cost, 6 * len(X_R) - 12)
+        return Fit(X_H, r.X_FT, 0.5 * (cov + cov.T), cov_F, noise, r.cost, r.dof,
+                   dict(r.parameters), dict(r.parameter_std))
+    r = refine_ml_poses(X_R, X_CT, X_CH0, noise.rotation, noise.translation, "so3",
+                        X_BT_init=X_F0, covariances=C)
+    return Fit(r.X_EC, r.X_BT, r.X_EC_covariance, r.full_covariance[6:, 6:], noise, r.cost,
+               6 * len(X_R) - 12)
+
+
+def residual_vectors(X_R, X_CT, X_H, X_F) -> np.ndarray:
+    """(K, 6) per sample: the error of the measured X_CT against the prediction
+    X_H⁻¹ X_R⁻¹ X_F, [log(R_CT R̂_CTᵀ) (rad, about C's axes); t_CT − t̂_CT (m, in C)]."""
+    X_R = np.asarray(X_R, dtype=float).reshape(-1, 4, 4)
+    return pose_residual_vectors(inverse_stack(X_R), X_CT, inverse(np.asarray(X_H, float)),
+                                 X_F)
+
+
+def estimate_noise(r: np.ndarray, covariances=None, num_parameters: int = 12) -> Noise:
+    """The camera noise that explains residual vectors r (K, 6) (``residual_vectors``),
+    robustly: per axis σ_i = ``MAD_SCALE`` · median |r_i|; with per-sample ``covariances``
+    (K, 6, 6) of the same samples, the factor s² = median(r_kᵀ C_k⁻¹ r_k) / median of χ²(6)
+    on them. Both corrected for the residual degrees of freedom the fit takes
+    (``num_parameters`` over 6 K residuals). Floored at ``NOISE_FLOOR``."""
+    K = len(r)
+    dof = max(6.0 * K - num_parameters, 1.0) / (6.0 * K)
+    s = MAD_SCALE * np.median(np.abs(r), axis=0) / math.sqrt(dof)
+    rot = np.maximum(s[:3], NOISE_FLOOR[0])
+    trans = np.maximum(s[3:], NOISE_FLOOR[1])
+    if covariances is None:
+        return Noise(rot, trans)
+    C = np.asarray(covariances, float)
+    q = np.einsum("ki,ki->k", r, np.linalg.solve(C, r[..., None])[..., 0])
+    scale = math.sqrt(max(float(np.median(q)) / chi2.median(6) / dof, 1e-12))
+    return Noise(rot, trans, None, scale)
 
 
 def _tangent_difference(X1, X2) -> np.ndarray:
@@ -152,6 +268,7 @@ class CalibrationResult:
     sample_used: np.ndarray         # (M,) "fit", "held_out", "outlier", "excluded"
     residual_deg: np.ndarray        # (M,) pose residuals of every aligned sample at the result
     residual_m: np.ndarray
+    whitened_sq: np.ndarray         # (M,) residual² whitened by the fit's noise (χ²(6) if it fits)
     fit_residuals: dict
     held_out_residuals: dict
     spread: object                  # consistency.Spread of the implied fixed poses
@@ -163,6 +280,7 @@ class CalibrationResult:
     seed: int
     time_offset_refined: dict | None = None
     online: list | None = None      # ``online.OnlineReplay`` per filter
+    correlation: dict | None = None  # ``correlated_covariance``'s info (None: not applied)
     inputs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
 
@@ -243,34 +361,133 @@ def _classical(X_R, X_CT, method, min_rotation_deg, max_pair_angle_deg, seed):
     return best[1], best[2], best[3]
 
 
-def _fit_with_outliers(X_R, X_CT, idx, X_H0, fixed, max_rounds: int = 3):
-    """ML fit on samples ``idx`` with the noise estimated from the residuals; samples whose
-    whitened residual is an outlier of χ²(6) are dropped and the fit redone. Returns (Fit,
-    kept indices)."""
+def _with_given(noise: Noise, given) -> Noise:
+    """``noise`` with the given per-sample covariances (M, 6, 6) scaled by its factor."""
+    if given is None:
+        return noise
+    return Noise(noise.rotation, noise.translation, given * noise.scale ** 2, noise.scale)
+
+
+def _fit_with_outliers(X_R, X_CT, idx, X_H0, fixed, given=None, max_rounds: int = 3):
+    """ML fit on samples ``idx`` with the noise estimated from the residuals (per axis of the
+    camera frame, or the factor on the ``given`` per-sample covariances (M, 6, 6)); samples
+    whose whitened residual² is an outlier of χ²(6) are dropped and the fit redone. Returns
+    (Fit, kept indices)."""
+    idx = np.asarray(idx)
     X_F0 = mean_pose(implied_fixed_poses(X_R[idx], X_CT[idx], X_H0))
-    deg, dist = pose_residuals(X_R[idx], X_CT[idx], X_H0, X_F0)
-    sr, st = noise_from_residuals(deg, dist)
-    sr, st = max(sr, NOISE_FLOOR[0]), max(st, NOISE_FLOOR[1])
+    r = residual_vectors(X_R[idx], X_CT[idx], X_H0, X_F0)
+    noise = _with_given(estimate_noise(r, None if given is None else given[idx]), given)
     threshold = chi2.ppf(OUTLIER_PROBABILITY, 6)
-    keep = np.array(idx)
+    keep = idx
     fit = None
     for _ in range(max_rounds):
-        fit = ml_fit(X_R[keep], X_CT[keep], X_H0 if fit is None else fit.X_H, sr, st, fixed,
-                     X_F0 if fit is None else fit.X_F)
-        deg, dist = pose_residuals(X_R[keep], X_CT[keep], fit.X_H, fit.X_F)
-        sr_new, st_new = noise_from_residuals(deg, dist)
-        sr_new, st_new = max(sr_new, NOISE_FLOOR[0]), max(st_new, NOISE_FLOOR[1])
-        whitened = (np.radians(deg) / sr_new) ** 2 + (dist / st_new) ** 2
-        new_keep = keep[whitened <= threshold]
-        changed = len(new_keep) != len(keep) or abs(sr_new / sr - 1) > 0.05 or \
-            abs(st_new / st - 1) > 0.05
-        sr, st = sr_new, st_new
+        fit = _ml_fit(X_R[keep], X_CT[keep], X_H0 if fit is None else fit.X_H, noise, keep,
+                      fixed, X_F0 if fit is None else fit.X_F)
+        r = residual_vectors(X_R[keep], X_CT[keep], fit.X_H, fit.X_F)
+        new_noise = _with_given(estimate_noise(r, None if given is None else given[keep]),
+                                given)
+        new_keep = keep[new_noise.chi2(r, keep) <= threshold]
+        changed = len(new_keep) != len(keep) or new_noise.changed(noise)
+        noise = new_noise
         if len(new_keep) >= 3:
             keep = new_keep
         if not changed:
             break
-    fit = ml_fit(X_R[keep], X_CT[keep], fit.X_H, sr, st, fixed, fit.X_F)
+    fit = _ml_fit(X_R[keep], X_CT[keep], fit.X_H, noise, keep, fixed, fit.X_F)
     return fit, keep
+
+
+def correlated_covariance(X_R, X_CT, idx, fit: Fit) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The fit's covariance widened for residuals correlated from sample to sample.
+
+    The maximum-likelihood covariance (JᵀJ)⁻¹ assumes independent samples. Errors that vary
+    smoothly along the recording — the robot's kinematic errors (a smooth function of its
+    configuration), a residual clock offset, a slowly moving target — are shared by neighbouring
+    samples and do not average out as 1/√n. The heteroscedasticity-and-autocorrelation-
+    consistent (HAC, Newey–West) sandwich A⁻¹ B A⁻¹ measures that from the residuals
+    themselves: A = Σ H_kᵀ H_k, B = Σ_l w_l Σ_k g_k g_{k+l}ᵀ with the scores g_k = H_kᵀ r_k
+    (whitened Jacobian and residual of sample k, in time order), Bartlett weights
+    w_l = 1 − |l| / (L + 1) and Andrews' AR(1) bandwidth L. The reported covariance is the ML one
+    plus the positive part of (sandwich − ML): never smaller than the ML covariance.
+
+    Returns (X_H covariance 6×6 about / along H's axes, X_F covariance 6×6, info).
+    """
+    idx = np.asarray(idx)
+    X_R, X_CT = X_R[idx], X_CT[idx]
+    X_EB = inverse_stack(X_R)
+    X_CE = inverse(fit.X_H)
+    r = residual_vectors(X_R, X_CT, fit.X_H, fit.X_F)
+    noise = fit.noise
+    if noise.covariances is None:
+        H = pose_jacobians(X_EB, X_CE, fit.X_F, noise.rotation, noise.translation)
+        rw = r / np.concatenate([noise.rotation, noise.translation])
+    else:
+        W = pose_whitening(noise.subset(idx), len(idx))
+        H = W @ pose_jacobians(X_EB, X_CE, fit.X_F, 1.0, 1.0)
+        rw = np.einsum("kij,kj->ki", W, r)
+    n = len(idx)
+    A = np.einsum("kij,kil->jl", H, H)
+    try:
+        A_inv = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return fit.covariance, fit.fixed_covariance, {"lag": 0, "widened": False}
+    g = np.einsum("kij,ki->kj", H, rw)           # (n, 12) scores
+    L = _bartlett_lag(g)
+    B = g.T @ g
+    for lag in range(1, L + 1):
+        G = g[lag:].T @ g[:-lag]
+        B += (1.0 - lag / (L + 1.0)) * (G + G.T)
+    # Degrees of freedom: the residuals are smaller than the noise by the fit's 12 parameters.
+    B *= n / max(n - 2.0, 1.0)
+    sandwich = A_inv @ B @ A_inv
+    D = 0.5 * (sandwich - A_inv + (sandwich - A_inv).T)
+    w, V = np.linalg.eigh(D)
+    extra = (V * np.maximum(w, 0.0)) @ V.T      # 12×12, [δ_CE; δ_F]
+    J = inverse_tangent_jacobian(X_CE)           # δ_H = J δ_CE
+    cov_H = fit.covariance + J @ extra[:6, :6] @ J.T
+    cov_F = fit.fixed_covariance + extra[6:, 6:]
+    ml_var = np.diag(fit.covariance)
+    ratio = np.sqrt(np.diag(cov_H) / np.maximum(ml_var, 1e-300))
+    return 0.5 * (cov_H + cov_H.T), 0.5 * (cov_F + cov_F.T), {
+        "lag": int(L), "widened": bool(np.any(w > 0)),
+        "std_factor": ratio.tolist()}
+
+
+def robot_error_covariance(X_H, robot_accuracy) -> np.ndarray:
+    """6×6 covariance of the hand-eye error [δθ; δt] (about / along the holder H's axes) that
+    a robot pose error constant over the recording causes: a flange error e = [e_r; e_t]
+    (per-axis σ = ``robot_accuracy`` (deg, m)) is explained exactly by the hand-eye pose
+    exp(−e) X_HC, i.e. δθ = −e_r, δt = −e_t + [t_HC]× e_r."""
+    try:
+        deg, m = (float(v) for v in robot_accuracy)
+    except (TypeError, ValueError):
+        raise ValueError(f"robot_accuracy: expected (degrees, metres), got "
+                         f"{robot_accuracy!r}") from None
+    if not (math.isfinite(deg) and math.isfinite(m) and deg >= 0 and m >= 0):
+        raise ValueError(f"robot_accuracy: must be finite and ≥ 0, got {robot_accuracy!r}")
+    t = np.asarray(X_H, float)[:3, 3]
+    S = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    J = np.block([[-np.eye(3), np.zeros((3, 3))], [S, -np.eye(3)]])
+    return J @ np.diag([math.radians(deg) ** 2] * 3 + [m ** 2] * 3) @ J.T
+
+
+def _bartlett_lag(g: np.ndarray) -> int:
+    """Andrews' (1991) data-dependent Bartlett bandwidth from AR(1) fits of the score series:
+    L = 1.1447 (α n)^(1/3), α = Σ 4ρ²σ⁴/((1−ρ)⁶(1+ρ)²) / Σ σ⁴/(1−ρ)⁴; at most n / 4."""
+    n = len(g)
+    if n < 8:
+        return 0
+    x, y = g[:-1], g[1:]
+    den = np.sum(x * x, axis=0)
+    ok = den > 0
+    if not np.any(ok):
+        return 0
+    rho = np.clip(np.sum(x * y, axis=0)[ok] / den[ok], -0.97, 0.97)
+    s2 = np.mean((y[:, ok] - rho * x[:, ok]) ** 2, axis=0)
+    num = np.sum(4 * rho**2 * s2**2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
+    den = np.sum(s2**2 / (1 - rho) ** 4)
+    alpha = num / den if den > 0 else 0.0
+    return int(min(math.ceil(1.1447 * (alpha * n) ** (1.0 / 3.0)), n // 4))
 
 
 def _split_check(X_R, X_CT, idx, fit: Fit, fixed, seed) -> SplitCheck | None:
@@ -284,8 +501,7 @@ def _split_check(X_R, X_CT, idx, fit: Fit, fixed, seed) -> SplitCheck | None:
     fits = []
     for h in halves:
         try:
-            fits.append(ml_fit(X_R[h], X_CT[h], fit.X_H, fit.rotation_sigma,
-                               fit.translation_sigma, None, fit.X_F))
+            fits.append(_ml_fit(X_R[h], X_CT[h], fit.X_H, fit.noise, h, None, fit.X_F))
         except ValueError:
             return None
     # Both X_H errors live about H's axes at nearly the same point: compare there.
@@ -311,8 +527,10 @@ def _refine_time_offset(robot_side: PoseStream, camera: PoseStream, offset: floa
         X_R, X_CT = np.asarray(aligned.X_BE), np.asarray(aligned.X_CT)
         step = max(1, len(X_R) // MAX_OFFSET_REFINE_SAMPLES)
         X_R, X_CT = X_R[::step], X_CT[::step]
-        deg, dist = pose_residuals(X_R, X_CT, fit.X_H, fit.X_F)
-        w = (np.radians(deg) / fit.rotation_sigma) ** 2 + (dist / fit.translation_sigma) ** 2
+        # Per-axis noise (the per-sample covariances are tied to the current alignment).
+        r = residual_vectors(X_R, X_CT, fit.X_H, fit.X_F)
+        w = np.sum((r / np.concatenate([fit.rotation_sigmas, fit.translation_sigmas])) ** 2,
+                   axis=1)
         # A robust (Cauchy) cost: outlying camera poses must not steer the offset.
         return float(np.sum(np.log1p(w / 6.0)))
 
@@ -333,7 +551,8 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                       seed: int = 0, fixed=None, max_noise=(1.0, 0.01),
                       max_hand_eye_distance: float | None = None, alternatives=None,
                       quaternion_streams=("robot", "camera"), camera_resampler=None,
-                      online: bool = False, online_step_deg: float = 10.0) -> CalibrationResult:
+                      online: bool = False, online_step_deg: float = 10.0,
+                      camera_covariances=None, robot_accuracy=None) -> CalibrationResult:
     """Calibrates the hand-eye transform from a robot stream (X_BE) and a camera stream (X_CT).
 
     Args:
@@ -363,6 +582,18 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
             systematic uncertainty (e.g. intrinsics calibrated from the same images); the spread
             of the results it gives is added to the covariance (``RESAMPLES`` draws).
         online: also replay the recording through the on-line filters (``online.replay``).
+        camera_covariances: optional (N, 6, 6), one per camera sample: the covariance of its
+            error [δθ (rad, about C's axes); δt (m)] (``vision.detection``'s ``covariance``).
+            The fit then whitens each sample by its own covariance, scaled by one factor
+            estimated from the residuals (detector covariances are often mis-scaled); without
+            them the noise is estimated per axis of the camera frame.
+        robot_accuracy: optional (deg, m), the per-axis standard deviation of the error of the
+            robot's reported pose (its absolute accuracy over the recorded workspace). A robot
+            error that varies slowly over the workspace is largely absorbed by the fitted
+            poses — invisible in the residuals, it biases the result — so its constant part is
+            added to the covariance as an error of the hand-eye pose about / along the
+            holder's axes. Without it the σ cover the camera noise and residual correlations
+            only (see ``correlated_covariance``).
 
     Returns:
         ``CalibrationResult`` (``verdict.status`` OK, WARN or FAIL).
@@ -394,6 +625,14 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         max_hand_eye_distance = DEFAULT_MAX_HAND_EYE_DISTANCE[mode]
     fixed = (parse_fixed(fixed) if isinstance(fixed, str) else check_fixed(fixed)) if fixed \
         else {}
+
+    if camera_covariances is not None:
+        pose_whitening(camera_covariances, len(camera), "camera_covariances")  # checks them
+        camera_covariances = np.asarray(camera_covariances, dtype=float)
+
+    def given_for(aligned):
+        return None if camera_covariances is None else \
+            camera_covariances[np.asarray(aligned.camera_index)]
 
     robot_side = robot if mode == "eye_in_hand" else robot.inverted()
     warnings = []
@@ -429,8 +668,8 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
             reading = checks.Reading(mode, offset, offset_mode, float(time_offset_range),
                                      tuple(quaternion_streams))
             raise _explain_unsolvable(e, robot, camera, X_R, X_CT, reading, fixed,
-                                      (max_noise_deg, max_noise_m, max_hand_eye_distance)
-                                      ) from None
+                                      (max_noise_deg, max_noise_m, max_hand_eye_distance),
+                                      aligned.camera_lines) from None
         classical, used_method = None, "maximum likelihood with held components (fan of starts)"
 
     M = len(X_R)
@@ -443,7 +682,7 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
     held = np.sort(rng.permutation(inliers)[:n_hold])
     fit_idx = np.setdiff1d(inliers, held)
     try:
-        fit, kept = _fit_with_outliers(X_R, X_CT, fit_idx, X_H0, fixed)
+        fit, kept = _fit_with_outliers(X_R, X_CT, fit_idx, X_H0, fixed, given_for(aligned))
     except UnobservableError as e:
         raise ValueError(f"the recording does not determine the hand-eye pose: {e}") from None
 
@@ -460,10 +699,18 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                 inliers = np.arange(M)
                 held = np.sort(rng.permutation(inliers)[:int(round(holdout_fraction * M))])
                 fit_idx = np.setdiff1d(inliers, held)
-            fit, kept = _fit_with_outliers(X_R, X_CT, fit_idx, fit.X_H, fixed)
+            fit, kept = _fit_with_outliers(X_R, X_CT, fit_idx, fit.X_H, fixed,
+                                           given_for(aligned))
+
+    correlation = None
+    if not fixed:
+        fit.covariance, fit.fixed_covariance, correlation = correlated_covariance(
+            X_R, X_CT, kept, fit)
+    if robot_accuracy is not None:
+        fit.covariance = fit.covariance + robot_error_covariance(fit.X_H, robot_accuracy)
 
     systematic = None
-    if camera_resampler is not None and not refined_changed(refined):
+    if camera_resampler is not None:
         systematic = _systematic_covariance(camera_resampler, aligned, X_R, kept, fit, fixed,
                                             seed)
         fit.covariance = fit.covariance + systematic
@@ -478,13 +725,14 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
     used[kept] = "fit"
     used[held] = "held_out"
     deg, dist = pose_residuals(X_R, X_CT, fit.X_H, fit.X_F)
+    whitened = fit.noise.chi2(residual_vectors(X_R, X_CT, fit.X_H, fit.X_F), np.arange(M))
     spread = fixed_pose_spread(implied_fixed_poses(X_R[kept], X_CT[kept], fit.X_H))
     split = _split_check(X_R, X_CT, kept, fit, fixed, seed)
     observability = None
     try:
         X_BE_kept = X_R[kept] if mode == "eye_in_hand" else inverse_stack(X_R[kept])
         observability = observability_report(list(X_BE_kept), inverse(fit.X_H), fit.X_F,
-                                             fit.rotation_sigma, fit.translation_sigma, mode)
+                                             fit.rotation_sigmas, fit.translation_sigmas, mode)
     except ValueError as e:
         warnings.append(f"observability analysis failed: {e}")
 
@@ -492,7 +740,7 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         mode=mode, robot=robot, camera=camera, method=used_method,
         time_offset_mode=offset_mode, time_offset=estimate, aligned=aligned,
         classical=classical, classical_X_H=X_H0, fit=fit, sample_used=used,
-        residual_deg=deg, residual_m=dist,
+        residual_deg=deg, residual_m=dist, whitened_sq=whitened,
         fit_residuals=residual_summary(deg[kept], dist[kept]),
         held_out_residuals=residual_summary(deg[held], dist[held]), spread=spread,
         split=split, observability=observability, hypotheses=[], verdict=None,
@@ -503,8 +751,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                   "max_noise": [max_noise_deg, max_noise_m],
                   "max_hand_eye_distance_m": float(max_hand_eye_distance),
                   "fixed": dict(fixed),
+                  "robot_accuracy": None if robot_accuracy is None else
+                  [float(v) for v in robot_accuracy],
                   "quaternion_streams": tuple(quaternion_streams)},
-        seed=int(seed), time_offset_refined=refined, warnings=warnings)
+        seed=int(seed), time_offset_refined=refined, warnings=warnings,
+        correlation=correlation)
     reading = checks.reading_of(result)
     result.hypotheses = checks.try_alternatives(
         robot, camera, reading, checks.default_alternatives(robot, camera, reading)
@@ -521,10 +772,6 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
 RESAMPLES = 30
 
 
-def refined_changed(refined) -> bool:
-    return bool(refined and refined.get("refined"))
-
-
 def _systematic_covariance(resampler, aligned, X_R, kept, fit: Fit, fixed, seed) -> np.ndarray:
     """Covariance of the hand-eye result over camera poses re-measured by ``resampler`` (the
     samples are index-paired: ``aligned.camera_index`` maps them to the resampled poses)."""
@@ -534,8 +781,7 @@ def _systematic_covariance(resampler, aligned, X_R, kept, fit: Fit, fixed, seed)
     for _ in range(RESAMPLES):
         X_CT = resampler(rng)[index]
         try:
-            f = ml_fit(X_R[kept], X_CT, fit.X_H, fit.rotation_sigma, fit.translation_sigma,
-                       fixed, fit.X_F)
+            f = _ml_fit(X_R[kept], X_CT, fit.X_H, fit.noise, kept, fixed, fit.X_F)
         except ValueError:
             continue
         deltas.append(_tangent_difference(f.X_H, fit.X_H))
@@ -551,10 +797,11 @@ def _median_period(stream: PoseStream) -> float:
 
 
 def _explain_unsolvable(error: ValueError, robot, camera, X_R, X_CT, reading, fixed,
-                        max_noise) -> ValueError:
+                        max_noise, lines=None) -> ValueError:
     """A classical-start failure, completed with its most likely cause: a usual mistake that
-    explains the data (``checks``), or the directions the motions leave undetermined (the
-    observability analysis, with the ``--fix`` that helps)."""
+    explains the data (``checks``), a move of the target or of the camera during the recording
+    (``changepoint``), or the directions the motions leave undetermined (the observability
+    analysis, with the ``--fix`` that helps)."""
     from . import checks
     text = error.args[0] if error.args else str(error)
     if not isinstance(error, InconsistentMotions) and "do not match" not in text \
@@ -564,6 +811,11 @@ def _explain_unsolvable(error: ValueError, robot, camera, X_R, X_CT, reading, fi
                                          checks.default_alternatives(robot, camera, reading))
     better = checks.explaining(hypotheses, *max_noise)
     if not better:
+        from .changepoint import find_move
+        move = find_move(X_R, X_CT)
+        if move is not None:
+            return ValueError(f"no hand-eye transform fits all the samples ({text}); likely "
+                              f"cause: {move.message(lines, hand_name(reading.mode))}")
         return ValueError("; ".join(str(a) for a in error.args))
     best = better[0]
     return ValueError(f"no hand-eye transform fits the data as read ({text}); "
@@ -609,5 +861,6 @@ def tangent_std(covariance) -> tuple[np.ndarray, np.ndarray]:
     return np.degrees(d[:3]), d[3:]
 
 
-__all__ = ["CalibrationResult", "Fit", "SplitCheck", "calibrate_streams", "fixed_name",
-           "hand_name", "ml_fit", "residual_summary", "tangent_std", "inverse_tangent_jacobian"]
+__all__ = ["CalibrationResult", "Fit", "Noise", "SplitCheck", "calibrate_streams",
+           "estimate_noise", "fixed_name", "hand_name", "ml_fit", "residual_summary",
+           "residual_vectors", "tangent_std", "inverse_tangent_jacobian"]

@@ -59,6 +59,33 @@ def _finite(v):
     return None if v is None or not math.isfinite(v) else v
 
 
+def _noise_dict(fit) -> dict:
+    n = fit.noise
+    out = {"rotation_deg_xyz": np.degrees(n.rotation).tolist(),
+           "translation_m_xyz": n.translation.tolist(),
+           "rotation_deg": math.degrees(fit.rotation_sigma),
+           "translation_m": fit.translation_sigma,
+           "frame": "camera C (x right, y down, z forward): rotation about, translation along "
+                    "its axes; rotation_deg / translation_m: RMS over the three axes",
+           "from": "1.4826 × median |residual| per axis of the fit samples (residuals in C)"}
+    if n.scale is not None:
+        out["per_sample_covariances"] = {
+            "scale": n.scale,
+            "definition": "the fit whitens each sample by its given covariance times scale²; "
+                          "scale² = median whitened residual² / median of χ²(6)"}
+    return out
+
+
+def _held_out_dict(result) -> dict | None:
+    from .checks import held_out_test
+    t = held_out_test(result)
+    if t is None:
+        return None
+    return {"ratio": t["ratio"], "bound_99.9%": t["bound"], "dof": list(t["dof"]),
+            "worst_line": t["worst_line"], "worst_whitened_sq": t["worst_whitened_sq"],
+            "definition": "mean whitened residual² per dof, held-out over fit (F-test)"}
+
+
 def to_dict(result: CalibrationResult) -> dict:
     r, a, fit = result, result.aligned, result.fit
     hand, fixed = hand_name(r.mode), fixed_name(r.mode)
@@ -80,9 +107,11 @@ def to_dict(result: CalibrationResult) -> dict:
         hand: _pose_dict(fit.X_H, fit.covariance),
         fixed: _pose_dict(fit.X_F, fit.fixed_covariance),
         "fixed_components": r.settings["fixed"] or None,
-        "noise_per_axis": {"rotation_deg": math.degrees(fit.rotation_sigma),
-                           "translation_m": fit.translation_sigma,
-                           "from": "median pose residuals of the fit"},
+        "robot_accuracy": None if not r.settings.get("robot_accuracy") else {
+            "rotation_deg": r.settings["robot_accuracy"][0],
+            "translation_m": r.settings["robot_accuracy"][1]},
+        "noise_per_axis": _noise_dict(fit),
+        "held_out_test": _held_out_dict(r),
         "time_offset": {
             "mode": r.time_offset_mode, "value_s": a.time_offset,
             "convention": "camera stamp - robot time of the same instant",
@@ -185,7 +214,10 @@ def table(result: CalibrationResult) -> str:
     r_std, t_std = tangent_std(fit.covariance)
     target = ("camera in end-effector frame" if r.mode == "eye_in_hand" else
               "camera in robot base frame")
-    lines.append(f"{hand} ({target}); ± 1σ")
+    accuracy = r.settings.get("robot_accuracy")
+    lines.append(f"{hand} ({target}); ± 1σ" + (
+        f" (including the robot's accuracy {accuracy[0]:g}° / {1000 * accuracy[1]:g} mm, "
+        "--robot-accuracy)" if accuracy else ""))
     for row in fit.X_H:
         lines.append("  [" + " ".join(f"{v:+.6f}" for v in row) + "]")
     lines.append(f"  translation (mm)       {_vec(1000 * fit.X_H[:3, 3], '{:+9.3f}')}  ± "
@@ -197,8 +229,12 @@ def table(result: CalibrationResult) -> str:
         lines.append(f"  held at known values: {', '.join(f'{k}={v:g}' for k, v in r.settings['fixed'].items())}")
     lines.append(f"{fixed} translation (mm) {_vec(1000 * fit.X_F[:3, 3], '{:+9.2f}')}")
     lines.append("")
-    lines.append(f"noise per axis (from the residuals): {math.degrees(fit.rotation_sigma):.4f}° / "
-                 f"{1000 * fit.translation_sigma:.4f} mm")
+    n = fit.noise
+    lines.append(f"noise per axis of the camera (from the residuals): rotation "
+                 f"{_vec(np.degrees(n.rotation), '{:.4f}')}° / translation "
+                 f"{_vec(1000 * n.translation, '{:.4f}')} mm about / along x y z"
+                 + ("" if n.scale is None else
+                    f"; per-sample covariances × {n.scale:.3g} (σ factor from the residuals)"))
     lines.append("residuals per sample     rotation (deg)            translation (mm)")
     lines.append("                         median   rms      max     median   rms      max")
     for name, s in (("fit", r.fit_residuals), ("held out", r.held_out_residuals)):
