@@ -171,6 +171,11 @@ class EstimatorBase:
     #: Dimension of one measurement (the χ² degrees of freedom of its NIS); set by subclasses.
     _MEASUREMENT_DOF = 6
 
+    @classmethod
+    def vector_size(cls, config=None) -> int:
+        """Length of ``to_vector`` (the subclass's ``_LAYOUT``; the same for every config)."""
+        return cls._LAYOUT.size
+
     def _record_nis(self, nis: float) -> None:
         """Adds the NIS of a fused measurement to the consistency test of ``diagnostics``."""
         if math.isfinite(nis):

@@ -278,10 +278,6 @@ class HandEyeKalmanFilter(EstimatorBase):
         return out
 
     # -------------------------------------------------------------------------------- vector
-    @classmethod
-    def vector_size(cls, config=None) -> int:
-        return cls._LAYOUT.size
-
     def to_vector(self) -> np.ndarray:
         prev = (np.zeros(24) if self._prev is None else
                 np.concatenate([pose_to_vector(self._prev[0]), pose_to_vector(self._prev[1])]))

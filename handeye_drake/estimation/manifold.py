@@ -372,10 +372,6 @@ class ManifoldHandEyeFilter(_ErrorStateFilter):
         return pose_to_vector(self._estimate)
 
     # ------------------------------------------------------------------------------ vector
-    @classmethod
-    def vector_size(cls, config=None) -> int:
-        return cls._LAYOUT.size
-
     def to_vector(self) -> np.ndarray:
         prev = (np.zeros(24) if self._prev is None else
                 np.concatenate([pose_to_vector(self._prev[0]), pose_to_vector(self._prev[1])]))
@@ -502,10 +498,6 @@ class HandEyeTargetFilter(_ErrorStateFilter):
         return out
 
     # ------------------------------------------------------------------------------ vector
-    @classmethod
-    def vector_size(cls, config=None) -> int:
-        return cls._LAYOUT.size
-
     def to_vector(self) -> np.ndarray:
         X_CE, X_BT = self._estimate
         return self._LAYOUT.pack(
