@@ -159,6 +159,8 @@ def test_same_inputs_and_seed_give_the_same_bytes(example, tmp_path):
     ("camera_inverted", "the data fit eye-to-hand.*camera poses are \\(X_TC given for X_CT\\)"),
     ("wrong_mode", "the data fit eye-in-hand"),
     ("offset_0", "clock offset given does not fit.*--time-offset auto"),
+    ("camera_scaled", r"camera's translations are 0\.(89|90)\d*× their true size: a wrong target "
+                      r"size.*multiply the target's sizes by 1\.1[01]"),
 ])
 def test_each_usual_mistake_fails_and_names_its_cause(tmp_path, capsys, case, expected):
     robot, camera, extra = ROBOT, CAMERA, []
@@ -178,6 +180,8 @@ def test_each_usual_mistake_fails_and_names_its_cause(tmp_path, capsys, case, ex
         extra = ["--mode", "eye-to-hand"]
     elif case == "offset_0":
         extra = ["--time-offset", "0"]
+    elif case == "camera_scaled":  # a detector given a 10 % too small target
+        camera = _rewrite(CAMERA, tmp_path / "c.tum", scale=0.9)
     code, doc = _run(tmp_path, "--robot", robot, "--camera", camera, *extra)
     captured = capsys.readouterr()
     text = captured.err + captured.out
@@ -368,3 +372,16 @@ def test_inputs_must_be_one_source(tmp_path, capsys):
     assert main(["calibrate", "--images", str(IMAGES), "--robot", ROBOT, "--out",
                  str(tmp_path / "o")]) == 2
     assert "--target" in capsys.readouterr().err
+
+
+def test_images_with_a_wrong_square_size_fail_naming_the_scale(tmp_path, capsys):
+    """The board's squares given as 35 mm instead of 40: rotations fit, translations do not —
+    never a result with a warning about 'weak' directions."""
+    code, doc = _run(tmp_path, "--images", IMAGES, "--robot", IMAGES / "robot_poses.tum",
+                     "--target", "charuco:7x5:0.035:0.02625:DICT_5X5_100", "--intrinsics",
+                     IMAGES / "intrinsics.yaml", "--export", "urdf")
+    assert code == 1 and doc["verdict"]["status"] == "FAIL"
+    reason = doc["verdict"]["reasons"][0]
+    assert reason["code"] == "camera_scale" and "0.875" in reason["message"]
+    assert "multiply the target's sizes by 1.14" in reason["message"]
+    assert not (tmp_path / "out" / "handeye.urdf").exists()

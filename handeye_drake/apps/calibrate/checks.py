@@ -186,11 +186,53 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
                 _stream(with_scaled_translations(r.poses, 1e-3), r) if w == "robot" else r,
                 _stream(with_scaled_translations(c.poses, 1e-3), c) if w == "camera" else c,
                 None)))
+    alts.append(_camera_scale_alternative(reading))
     if reading.time_offset_mode == "given" and robot.has_timestamps and camera.has_timestamps:
         alts.append(Alternative(
             "clock_offset", "the clock offset given does not fit the data",
             "--time-offset auto", lambda r, c: (r, c, "auto_offset")))
     return alts
+
+
+#: Range of the camera translation scale searched by the scale alternative.
+SCALE_RANGE = (0.5, 2.0)
+
+
+def _camera_scale_alternative(reading: Reading) -> Alternative:
+    """The camera's translations off by a factor: a wrong target size (the square or marker size
+    given to the detector or to --target) or a target printed at another scale — rotations fit,
+    translations do not. ``apply`` searches the factor (golden section on log s, the median
+    translation residual of the quick fit) and words the alternative with it."""
+    alt = Alternative("camera_scale", "", "", None)
+
+    def apply(r, c):
+        def cost(log_s):
+            scaled = _stream(with_scaled_translations(c.poses, math.exp(log_s)), c)
+            return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
+        lo, hi = (math.log(v) for v in SCALE_RANGE)
+        g = (math.sqrt(5.0) - 1.0) / 2.0
+        a, b = lo, hi
+        x1, x2 = b - g * (b - a), a + g * (b - a)
+        f1, f2 = cost(x1), cost(x2)
+        for _ in range(14):  # bracket 0.69 · 0.618¹⁴ ≈ 1e-3 in log s
+            if f1 < f2:
+                b, x2, f2 = x2, x1, f1
+                x1 = b - g * (b - a)
+                f1 = cost(x1)
+            else:
+                a, x1, f1 = x1, x2, f2
+                x2 = a + g * (b - a)
+                f2 = cost(x2)
+        factor = math.exp(0.5 * (a + b))
+        alt.description = (f"the camera's translations are {1 / factor:.4g}× their true size: a "
+                           "wrong target size (the square or marker size given to the detector "
+                           "or to --target) or a target printed at another scale")
+        alt.fix = (f"multiply the target's sizes by {factor:.4g} (or "
+                   f"--camera-translation-scale {factor:.4g} for pose files)")
+        return r, _stream(with_scaled_translations(c.poses, factor), c), None
+
+    alt.apply = apply
+    return alt
 
 
 def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypothesis]:
