@@ -15,6 +15,17 @@ from .argtypes import non_negative_float, positive_float
 from .outputs import check_output_file
 
 
+#: Paper sizes (mm) checked for the printed page, smallest first.
+PAPER_SIZES_MM = {"A4": (210, 297), "US Letter": (216, 279), "A3": (297, 420)}
+
+
+def _page_mm(png: Path, dpi: float) -> tuple[float, float]:
+    """Width and height (mm) of the written page, from the PNG's pixel size at ``dpi``."""
+    import struct
+    width, height = struct.unpack(">II", png.read_bytes()[16:24])  # the IHDR chunk
+    return width / dpi * 25.4, height / dpi * 25.4
+
+
 def run_target(args) -> int:
     from ..vision.targets import (object_points_description, parse_target, target_caption,
                                   write_printable)
@@ -27,6 +38,11 @@ def run_target(args) -> int:
         check_output_file(p, "--out", args.force)
     written = write_printable(target, png, dpi=args.dpi, margin=args.margin)
     print(f"target: {target_caption(target)}")
+    w_mm, h_mm = _page_mm(png, args.dpi)
+    fits = next((name for name, (a, b) in PAPER_SIZES_MM.items()
+                 if (w_mm <= a and h_mm <= b) or (w_mm <= b and h_mm <= a)), None)
+    print(f"page: {w_mm:.0f} × {h_mm:.0f} mm" + (f" (fits {fits})" if fits else
+                                                 " (larger than A3: print on a plotter)"))
     print(f"frame T: {object_points_description(target)}")
     print("wrote: " + ", ".join(str(p) for p in written))
     return 0

@@ -128,7 +128,7 @@ class Excitation:
         if not np.any(self.S):
             return (f"{what} is not observable: the robot has not rotated (no fused sample "
                     "rotates it)")
-        a = np.round(axis / np.abs(axis).max(), 2).tolist()
+        a = np.round(axis / np.linalg.norm(axis), 2).tolist()
         return (f"{what} is not observable from these motions: the rotation about the "
                 f"end-effector axis {a} (and the translation along it) is determined only to "
                 f"±{min(std, 999.0):.3g}° — every rotation is about (nearly) parallel axes or too "

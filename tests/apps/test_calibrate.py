@@ -385,3 +385,12 @@ def test_images_with_a_wrong_square_size_fail_naming_the_scale(tmp_path, capsys)
     assert reason["code"] == "camera_scale" and "0.875" in reason["message"]
     assert "multiply the target's sizes by 1.14" in reason["message"]
     assert not (tmp_path / "out" / "handeye.urdf").exists()
+
+
+def test_a_charuco_board_given_with_its_squares_swapped_gets_the_right_spec(tmp_path, capsys):
+    code, _ = _run(tmp_path, "--images", IMAGES, "--robot", IMAGES / "robot_poses.tum",
+                   "--target", "charuco:5x7:0.04:0.03:DICT_5X5_100", "--intrinsics",
+                   IMAGES / "intrinsics.yaml")
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "… (11 more)" in err
+    assert "(--target charuco:7x5:0.04:0.03:DICT_5X5_100)" in err

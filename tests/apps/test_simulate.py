@@ -84,3 +84,12 @@ def test_scenario_command_prints_a_loadable_template(capsys):
     text = capsys.readouterr().out
     assert "calibrator:" in text and "sensor:" in text
     assert load_scenario(text=text).seed == 0
+
+
+def test_diagram_pictures_do_not_depend_on_drakes_edge_order():
+    from handeye_drake.apps.pictures import _stable_dot
+    a = "digraph {\nnode1\ns2:y0:e -> s3:u0:w\ns1:y1:e -> s2:u0:w\nnode2\ns1:y0:e -> s4:u0:w\n}"
+    b = "digraph {\nnode1\ns1:y0:e -> s4:u0:w\ns2:y0:e -> s3:u0:w\nnode2\ns1:y1:e -> s2:u0:w\n}"
+    assert _stable_dot(a) == _stable_dot(b)
+    assert _stable_dot(a).split("\n")[:4] == ["digraph {", "node1", "s1:y0:e -> s4:u0:w",
+                                               "s1:y1:e -> s2:u0:w"]

@@ -14,6 +14,7 @@ def test_the_printed_chessboard_is_detected_at_its_true_scale(tmp_path, capsys):
     assert main(["target", "chessboard:9x6:0.0236", "--out", str(png), "--dpi", "200"]) == 0
     out = capsys.readouterr().out
     assert "square 23.6 mm" in out and "origin at the first inner corner" in out
+    assert "page: 256 × 193 mm (fits A4)" in out  # 10 × 7 squares of 23.6 mm, 10 mm margins, a caption
     assert png.with_suffix(".svg").exists() and png.with_suffix(".pdf").exists()
     image = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE)
     # Seen by a fronto-parallel camera 1 m away with f = ppm pixels, one metre on the paper is

@@ -350,10 +350,28 @@ def _detect_frames(frames, target, intrinsics, drawings_dir=None):
 
 
 def _require_found(records, found, target_spec, what: str):
-    if len(found) < 3:
-        raise ValueError(f"{what}: the target {target_spec} was found in only {len(found)} of "
-                         f"{len(records)} images (≥ 3 needed): " + "; ".join(
-                             f"{r.label()}: {r.reason}" for r in records if not r.found)[:400])
+    if len(found) >= 3:
+        return
+    missed = [r for r in records if not r.found]
+    listed = "; ".join(f"{r.label()}: {r.reason}" for r in missed[:3])
+    if len(missed) > 3:
+        listed += f"; … ({len(missed) - 3} more)"
+    hint = ""
+    from ...vision.targets import CharucoTarget, format_target, parse_target
+    try:
+        target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
+    except ValueError:
+        target = None
+    if isinstance(target, CharucoTarget) and any("ChArUco corners from" in (r.reason or "")
+                                                 for r in missed):
+        import dataclasses
+        swapped = dataclasses.replace(target, squares_x=target.squares_y,
+                                      squares_y=target.squares_x)
+        hint = (f" — markers were seen but no board: are the squares across and down swapped "
+                f"(--target {format_target(swapped)})? or the wrong marker dictionary, or a "
+                "board printed before OpenCV 4.6 (…:legacy)?")
+    raise ValueError(f"{what}: the target {target_spec} was found in only {len(found)} of "
+                     f"{len(records)} images (≥ 3 needed): {listed}{hint}")
 
 
 def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fmt=None,
