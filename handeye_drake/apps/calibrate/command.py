@@ -18,6 +18,7 @@ from ...estimation.solvers import METHODS
 from ...recorded.formats import FORMATS, MAX_TRANSLATION
 from ..argtypes import positive_float
 from ..outputs import prepare_output_dir
+from .corners import REFINE_CHOICES, calibrate_images
 from .inputs import (DEFAULT_MAX_IMAGES, QUATERNION_ORDERS, bag_image_streams, bag_streams,
                      file_streams, image_streams)
 from .pipeline import calibrate_streams
@@ -147,6 +148,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="fx,fy,cx,cy[,k1,k2,p1,p2[,k3]], an OpenCV YAML/XML file or a ROS "
                           "camera_info YAML (default: a bag's CameraInfo, else calibrated from "
                           "the images)")
+    img.add_argument("--refine-intrinsics", choices=REFINE_CHOICES, default="auto",
+                     help="intrinsics refined jointly with the hand-eye transform in the "
+                          "corner-level fit: none, focal (fx, fy together), pinhole (fx fy cx "
+                          "cy), k1k2 (pinhole + k1 k2), full (+ p1 p2 k3), or auto (default: the "
+                          "model whose left-out images are predicted best)")
     est = p.add_argument_group("estimation")
     est.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
                      help="eye-in-hand (camera on the flange: X_EC, default) or eye-to-hand "
@@ -253,16 +259,24 @@ def run_calibrate_command(args) -> int:
                                args.camera_pose_is_camera_in_target, robot_scale, camera_scale,
                                args.max_translation, args.time_scale,
                                args.robot_quaternion_order, args.camera_quaternion_order)
-    result = calibrate_streams(
-        streams.robot, streams.camera, mode=mode, method=args.method,
+    robot_accuracy = args.robot_accuracy if any(args.robot_accuracy) else None
+    corner_level = bool(streams.detections) and not args.fix
+    settings = dict(
+        mode=mode, method=args.method,
         time_offset=args.time_offset, time_offset_range=args.time_offset_range,
         min_rotation_deg=args.min_rotation, max_pair_angle_deg=args.max_pair_angle,
         holdout_fraction=args.holdout, seed=args.seed, fixed=args.fix,
         max_noise=args.max_noise, max_hand_eye_distance=args.max_hand_eye_distance,
-        robot_accuracy=args.robot_accuracy if any(args.robot_accuracy) else None,
-        quaternion_streams=streams.quaternion_streams,
-        camera_resampler=streams.camera_resampler, online=args.online,
-        online_step_deg=args.online_step)
+        robot_accuracy=robot_accuracy, quaternion_streams=streams.quaternion_streams,
+        camera_resampler=None if corner_level else streams.camera_resampler,
+        online=args.online, online_step_deg=args.online_step)
+    if corner_level:
+        result = calibrate_images(streams, settings, args.refine_intrinsics)
+        intrinsics_used = result.corners.camera_intrinsics(streams.intrinsics) \
+            if result.corners is not None else streams.intrinsics
+    else:
+        result = calibrate_streams(streams.robot, streams.camera, **settings)
+        intrinsics_used = streams.intrinsics
     result.inputs = streams.inputs
     if streams.images:
         result.inputs["images"]["per_image"] = [vars(r) for r in streams.images]
@@ -275,7 +289,7 @@ def run_calibrate_command(args) -> int:
         from ...recorded.exports import export_texts
         texts = export_texts(result.X_hand, args.export, mode=mode,
                              parent_frame=args.parent_frame, child_frame=args.child_frame,
-                             X_std=result.covariance, intrinsics=streams.intrinsics)
+                             X_std=result.covariance, intrinsics=intrinsics_used)
         for name, text in texts.items():
             p = out.path(name)
             p.write_text(text)

@@ -34,6 +34,10 @@ class Streams:
     #: ``rng -> (N, 4, 4)`` camera poses re-measured with intrinsics drawn from their
     #: uncertainty (intrinsics calibrated from the same images), else None.
     camera_resampler: object = None
+    #: ``vision.detection.TargetDetection`` of each camera sample (image inputs), else [].
+    detections: list = field(default_factory=list)
+    #: "given" (--intrinsics, CameraInfo) or "self-calibrated" (from the same images).
+    intrinsics_source: str = "given"
 
 
 def _reorder(stream: PoseStream, order: str, option: str, fmt: str) -> PoseStream:
@@ -417,7 +421,8 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     resampler = None if intrinsics_std is None else _resampler([d for _, d in found], intrinsics,
                                                                intrinsics_std)
     return Streams(robot_kept, camera, inputs, ("robot",) if robot_fmt == "tum" else (),
-                   records, intrinsics, resampler)
+                   records, intrinsics, resampler, [d for _, d in found],
+                   "given" if intrinsics_std is None else "self-calibrated")
 
 
 #: Default of ``--max-images``: detection costs ~15 ms per 640×480 frame.
@@ -521,4 +526,5 @@ def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrins
                          "intrinsics_note": "; ".join(notes + data.warnings)}}
     resampler = None if intrinsics_std is None else _resampler([d for _, d in kept], intrinsics,
                                                                intrinsics_std)
-    return Streams(data.robot, camera, inputs, (), records, intrinsics, resampler)
+    return Streams(data.robot, camera, inputs, (), records, intrinsics, resampler,
+                   [d for _, d in kept], "given" if intrinsics_std is None else "self-calibrated")

@@ -283,6 +283,7 @@ class CalibrationResult:
     correlation: dict | None = None  # ``correlated_covariance``'s info (None: not applied)
     inputs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    corners: object = None          # ``corners.CornerStage`` (image inputs), else None
 
     @property
     def X_hand(self) -> np.ndarray:

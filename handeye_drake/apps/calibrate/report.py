@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...estimation.se3 import quat_wxyz, rpy
+from .corners import task_sigmas
 from .pipeline import CalibrationResult, fixed_name, hand_name, tangent_std
 
 #: Sample line numbers listed in the JSON per category; beyond, a count.
@@ -101,11 +102,14 @@ def to_dict(result: CalibrationResult) -> dict:
         "verdict": r.verdict.to_dict(),
         "mode": r.mode,
         "inputs": r.inputs,
-        "method": {"start": r.method, "final": "maximum likelihood (AX = ZB on the raw poses)"},
+        "method": {"start": r.method, "final": "maximum likelihood (AX = ZB on the raw poses)"
+                   if r.corners is None else "corner-level maximum likelihood (every detected "
+                   "corner through the chain and the camera model)"},
         "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in r.settings.items()},
         "seed": r.seed,
         hand: _pose_dict(fit.X_H, fit.covariance),
         fixed: _pose_dict(fit.X_F, fit.fixed_covariance),
+        "task_space_sigma": task_sigmas(r.mode, fit.X_H, fit.covariance, a.X_BE),
         "fixed_components": r.settings["fixed"] or None,
         "robot_accuracy": None if not r.settings.get("robot_accuracy") else {
             "rotation_deg": r.settings["robot_accuracy"][0],
@@ -150,6 +154,8 @@ def to_dict(result: CalibrationResult) -> dict:
         "warnings": list(r.warnings),
         "online": None,
     }
+    if r.corners is not None:
+        out.update(r.corners.to_dict())
     if r.online is not None:
         out["online"] = [{
             "filter": o.label, "updates": int(len(o.times)), "keyframe_step_deg": o.step_deg,
@@ -204,12 +210,16 @@ def table(result: CalibrationResult) -> str:
     lines.append(f"samples: {int(np.sum(used == 'fit'))} fit, {int(np.sum(used == 'held_out'))} "
                  f"held out, {len(outl)} outliers" + (f" (lines {_short(outl)})" if len(outl)
                                                       else ""))
+    pose_level = "maximum likelihood on the raw poses (AX = ZB)"
     if r.classical is not None:
         lines.append(f"start: {r.method} on {int(r.classical.inlier.sum())} of "
-                     f"{len(r.classical.pairs)} motion pairs; result: maximum likelihood on the "
-                     "raw poses (AX = ZB)")
+                     f"{len(r.classical.pairs)} motion pairs; "
+                     + ("then " if r.corners is not None else "result: ") + pose_level)
     else:
-        lines.append(f"start: {r.method}; result: maximum likelihood on the raw poses (AX = ZB)")
+        lines.append(f"start: {r.method}; " + ("then " if r.corners is not None else
+                                                "result: ") + pose_level)
+    if r.corners is not None:
+        lines += r.corners.lines()
     lines.append("")
     r_std, t_std = tangent_std(fit.covariance)
     target = ("camera in end-effector frame" if r.mode == "eye_in_hand" else
@@ -225,6 +235,10 @@ def table(result: CalibrationResult) -> str:
     lines.append(f"  quaternion (w x y z)   {_vec(quat_wxyz(fit.X_H[:3, :3]), '{:+.6f}')}")
     lines.append(f"  roll-pitch-yaw (deg)   {_vec(np.degrees(rpy(fit.X_H[:3, :3])), '{:+9.4f}')}"
                  f"  ± {_vec(rpy_std_deg(fit.X_H, fit.covariance), '{:.4f}')}")
+    ts = task_sigmas(r.mode, fit.X_H, fit.covariance, a.X_BE)
+    lines.append(f"  σ of a point {ts['point_in_front_distance_m']:g} m in front of the camera "
+                 f"{1000 * ts['point_in_front_m']:.3f} mm; of the tool-centre point (flange "
+                 f"origin) {1000 * ts['tool_centre_point_m']:.3f} mm")
     if r.settings["fixed"]:
         lines.append(f"  held at known values: {', '.join(f'{k}={v:g}' for k, v in r.settings['fixed'].items())}")
     lines.append(f"{fixed} translation (mm) {_vec(1000 * fit.X_F[:3, 3], '{:+9.2f}')}")
