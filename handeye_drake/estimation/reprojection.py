@@ -631,15 +631,28 @@ SIMPLER_WITHIN = 1.01
 
 def select_intrinsics_model(data: CornerData, X_H0, X_F0, intrinsics0, models=INTRINSICS_MODELS,
                             pixel_sigma0: float = 0.5, pose_sigma0=None, seed: int = 0,
-                            folds: int | None = None, pose_error_frame: str = "camera"):
+                            folds: int | None = None, pose_error_frame: str = "camera",
+                            zero_fixed_distortion: bool = False):
     """Fits every intrinsics model and keeps the one whose images are best predicted when left
     out (``cross_validate``), or a simpler one within ``SIMPLER_WITHIN`` of it.
 
+    ``zero_fixed_distortion``: each model holds the distortion terms it does not refine at 0
+    (not at ``intrinsics0``'s: for intrinsics estimated from the same images, whose poorly
+    determined terms would otherwise bias the models that hold them).
+
     Returns (chosen model, {model: {"fit": CornerFit | None, "cv": dict | None, "error": str}})."""
     out = {}
+    v_start = np.asarray(intrinsics0, dtype=float) if np.ndim(intrinsics0) == 1 else \
+        intrinsics_vector(*intrinsics0)
     for m in models:
+        v_m = v_start.copy()
+        if zero_fixed_distortion:
+            free = set(_FREE.get(m, ()))
+            for i in range(4, 9):
+                if i not in free:
+                    v_m[i] = 0.0
         try:
-            f = fit_corners(data, X_H0, X_F0, intrinsics0, m, pixel_sigma0=pixel_sigma0,
+            f = fit_corners(data, X_H0, X_F0, v_m, m, pixel_sigma0=pixel_sigma0,
                             pose_sigma0=pose_sigma0, pose_error_frame=pose_error_frame)
             cv = cross_validate(data, f, folds, seed=seed)
             out[m] = {"fit": f, "cv": cv, "error": ""}

@@ -187,10 +187,13 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         X_F0 = X_F0.copy()
     kwargs = dict(pixel_sigma0=px0, pose_sigma0=ps0, pose_error_frame=frame)
     models = {}
-    candidates = INTRINSICS_MODELS if intrinsics_source == "given" else INTRINSICS_MODELS[1:]
+    # Intrinsics from the same images: every model offered refines the principal point and
+    # focal lengths they were estimated with (holding them would leave their error out of σ).
+    candidates = INTRINSICS_MODELS if intrinsics_source == "given" else INTRINSICS_MODELS[2:]
     if refine == "auto":
-        chosen, tried = select_intrinsics_model(data, X_H0, X_F0, v0, candidates,
-                                                seed=result.seed, **kwargs) \
+        chosen, tried = select_intrinsics_model(
+            data, X_H0, X_F0, v0, candidates, seed=result.seed,
+            zero_fixed_distortion=intrinsics_source != "given", **kwargs) \
             if scale0 == 1.0 else _select_scaled(data, X_H0, X_F0, v0, candidates, scale0,
                                                  result.seed, kwargs)
         for m, o in tried.items():
@@ -238,14 +241,22 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         refine: ``--refine-intrinsics``."""
     from .pipeline import calibrate_streams
     scale0 = 1.0
-    camera = streams.camera
     try:
-        result = calibrate_streams(streams.robot, camera, **settings)
-    except ValueError as error:
+        result = calibrate_streams(streams.robot, streams.camera, **settings)
+    except ValueError:
         found = _search_scale(streams, settings)
         if found is None:
             raise
         scale0, result = found
+    else:
+        if result.verdict.status == "FAIL":
+            # A target size off by a large factor reads like other mistakes (millimetres) at
+            # pose level; the scale that explains the poses, if any, is measured from pixels.
+            found = _search_scale(streams, settings)
+            if found is not None and found[1].verdict.status != "FAIL" or (
+                    found is not None and _median_translation(found[1]) < 0.5 *
+                    _median_translation(result) * found[0]):
+                scale0, result = found
     try:
         refine_with_corners(result, streams.detections, streams.intrinsics, refine,
                             settings.get("robot_accuracy"), streams.intrinsics_source, scale0)
@@ -255,6 +266,12 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         result.warnings.append(f"corner-level fit not done ({e}): the result is the pose-level "
                                "fit")
     return result
+
+
+def _median_translation(result) -> float:
+    """Median translation residual (m) of the fit samples, in the declared target's units."""
+    used = result.sample_used == "fit"
+    return float(np.median(result.residual_m[used])) if used.any() else math.inf
 
 
 def _search_scale(streams, settings):
@@ -417,7 +434,8 @@ def _apply(result, stage: CornerStage, robot_accuracy) -> None:
     result.fit.covariance = cov
     result.fit.fixed_covariance = f.fixed_covariance.copy()
     reasons = [r for r in result.verdict.reasons if r.code not in SUPERSEDED]
-    if any(r.code == "target_size" for r in stage.reasons):
+    if any(r.code == "target_size" for r in stage.reasons) and not any(
+            r.code == "pixel_residuals" for r in stage.reasons):
         reasons = [r for r in reasons if r.code not in CONSEQUENCES]
         reasons += [r for r in stage.reasons if r.code not in CONSEQUENCES]
     else:
