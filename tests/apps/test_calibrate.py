@@ -320,7 +320,12 @@ def test_images_without_intrinsics_calibrate_them_and_widen_sigma(tmp_path, caps
     truth = json.loads((IMAGES / "truth.json").read_text())
     code, doc = _run(tmp_path, "--images", IMAGES, "--robot", IMAGES / "robot_poses.tum",
                      "--target", truth["target"])
-    assert code == 0 and doc["verdict"]["status"] == "WARN"
+    # Refined jointly with the hand-eye transform (principal point and focal lengths always):
+    # their uncertainty is in the σ, and no scale error is invented.
+    assert code == 0 and doc["verdict"]["status"] == "OK", doc["verdict"]
+    assert doc["intrinsics"]["refined"] in ("pinhole", "k1k2", "full")
+    assert doc["intrinsics"]["sigma"]["cx"] > 0 and doc["intrinsics"]["sigma"]["fx"] > 0
+    assert abs(doc["corner_level"]["scale"]["factor"] - 1) < 0.002
     assert "intrinsics calibrated from the images" in doc["inputs"]["images"]["intrinsics_note"]
     assert _within(np.array(truth["X_EC"]), np.array(doc["X_EC"]["matrix"]), doc["X_EC"], k=3.0)
 

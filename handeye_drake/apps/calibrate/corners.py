@@ -333,8 +333,22 @@ def _scale_check(stage: CornerStage, data, kwargs) -> None:
         return
     z = (g.scale - 1.0) / max(g.scale_std, 1e-12)
     significant = abs(z) > SCALE_SIGMAS and abs(g.scale - 1.0) > SCALE_MIN_ERROR
+    explained_by = ""
+    if significant and stage.model not in ("k1k2", "full"):
+        # A focal length or principal point held wrong also moves the camera poses' scale:
+        # the scale is named only if it stays with the intrinsics refined too.
+        try:
+            c = fit_corners(data, g.X_H, g.X_F, f.intrinsics, "k1k2", free_scale=True,
+                            scale0=g.scale, pixel_sigma0=f.pixel_sigma,
+                            pose_sigma0=f.pose_sigma, pose_error_frame=f.pose_error_frame)
+            zc = (c.scale - 1.0) / max(c.scale_std, 1e-12)
+            if not (abs(zc) > SCALE_SIGMAS and abs(c.scale - 1.0) > SCALE_MIN_ERROR):
+                significant, explained_by = False, "intrinsics"
+        except ValueError:
+            pass
     stage.scale = {"factor": float(g.scale), "std": float(g.scale_std), "z": float(z),
                    "significant": bool(significant),
+                   "explained_by_intrinsics": explained_by == "intrinsics",
                    "meaning": "the target's true sizes are factor × those declared"}
     if significant:
         stage.reasons.append(Reason(
@@ -418,7 +432,7 @@ def _pixel_checks(stage: CornerStage) -> None:
 #: Pose-level reasons the pixel-level checks supersede: the scale and intrinsics readings, and
 #: the self-calibrated intrinsics' warning (their uncertainty is in the joint fit).
 SUPERSEDED = ("camera_scale", "self_calibrated_intrinsics")
-#: With a wrong target size, these pose-level reasons are its consequences, not other causes.
+#: With a wrong target size or intrinsics, these reasons are its consequences, not other causes.
 CONSEQUENCES = ("residuals", "sigma", "held_out", "camera_scale", "robot_millimetres",
                 "camera_millimetres", "implausible_result", "outliers", "weak", "other_mode",
                 "swapped_streams", "intrinsics", "image_outliers", "pixel_residuals")
@@ -434,10 +448,11 @@ def _apply(result, stage: CornerStage, robot_accuracy) -> None:
     result.fit.covariance = cov
     result.fit.fixed_covariance = f.fixed_covariance.copy()
     reasons = [r for r in result.verdict.reasons if r.code not in SUPERSEDED]
-    if any(r.code == "target_size" for r in stage.reasons) and not any(
-            r.code == "pixel_residuals" for r in stage.reasons):
-        reasons = [r for r in reasons if r.code not in CONSEQUENCES]
-        reasons += [r for r in stage.reasons if r.code not in CONSEQUENCES]
+    named = [r for r in stage.reasons if r.code in ("target_size", "intrinsics")]
+    if named and not any(r.code == "pixel_residuals" for r in stage.reasons):
+        # The pose-level checks ran on poses measured with the wrong size or intrinsics: what
+        # they flag are consequences of the cause the pixels name.
+        reasons = [r for r in reasons if r.code not in CONSEQUENCES] + named[:1]
     else:
         reasons += stage.reasons
     result.warnings = [w for w in result.warnings
