@@ -386,9 +386,13 @@ def test_images_with_a_wrong_square_size_fail_naming_the_scale(tmp_path, capsys)
                      "--target", "charuco:7x5:0.035:0.02625:DICT_5X5_100", "--intrinsics",
                      IMAGES / "intrinsics.yaml", "--export", "urdf")
     assert code == 1 and doc["verdict"]["status"] == "FAIL"
+    # Measured at pixel level (the corner-level fit with the target's scale free), the only
+    # reason named: 40 / 35 = 1.1429.
+    assert [r["code"] for r in doc["verdict"]["reasons"]] == ["target_size"]
     reason = doc["verdict"]["reasons"][0]
-    assert reason["code"] == "camera_scale" and "0.875" in reason["message"]
-    assert "multiply the target's sizes by 1.14" in reason["message"]
+    assert "1.143× those declared" in reason["message"]
+    assert "multiply the square (and marker) sizes of --target by 1.143" in reason["message"]
+    assert abs(doc["corner_level"]["scale"]["factor"] - 40 / 35) < 0.005
     assert not (tmp_path / "out" / "handeye.urdf").exists()
 
 

@@ -197,7 +197,10 @@ def test_without_usable_camera_info_the_intrinsics_come_from_the_images(recordin
     # Measured 0.081° / 2.2 mm; σ 0.56° / 3.4 mm with the intrinsics' uncertainty.
     assert rotation_error_deg(X_EC, X) < 0.3 and np.linalg.norm(X[:3, 3] - X_EC[:3, 3]) < 5e-3
     assert _within(X_EC, X, doc["X_EC"], k=3.0)
-    assert any("intrinsics calibrated from the same images" in w for w in doc["warnings"])
+    # Refined jointly with the hand-eye transform (their uncertainty in the σ), said so.
+    assert doc["intrinsics"]["refined"] in ("pinhole", "k1k2", "full")
+    assert any("intrinsics calibrated from the same images" in n
+               for n in doc["corner_level"]["notes"])
     # "none" ignores the CameraInfo beside the topic.
     streams = bag_image_streams(path, "base_link:tool0", IMAGE_TOPIC, truth["target"],
                                 camera_info_topic="none")

@@ -53,6 +53,9 @@ def _scene(rng, n, mode="eye_in_hand", pixel=0.1, pose_error=(5e-4, 2.5e-4), v=V
                                                 rng.normal(size=3) * pose_error[1])
             X_CT = inverse(X_H) @ X_BE_actual @ X_F
             X_R.append(inverse(X_BE))
+        if np.min(BOARD @ X_CT[:3, :3].T[:, 2] + X_CT[2, 3]) < 0.15:
+            X_R.pop()
+            continue                  # a view with the board behind or too close: not seen
         uv = _project_cv(X_CT, BOARD, v)
         obj.append(BOARD)
         img.append(uv + rng.normal(size=uv.shape) * pixel)
