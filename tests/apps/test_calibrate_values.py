@@ -1,0 +1,124 @@
+"""``calibrate``'s reported uncertainties checked against values computed independently, not
+only for their direction: the observability report (eye-in-hand and eye-to-hand) against the
+analysis of the original robot poses, and the robot's accuracy in the σ against its closed
+form (issue 22: a dropped inversion and a degrees²-for-radians² slip both passed the
+one-sided checks)."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import handeye_drake
+from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.apps.calibrate.inputs import file_streams
+from handeye_drake.apps.calibrate.pipeline import robot_error_covariance
+from handeye_drake.apps.calibrate.report import to_dict
+from handeye_drake.estimation import observability as ob
+from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+from handeye_drake.recorded.formats import pose_stream
+
+DATA = Path(handeye_drake.__file__).parent / "data"
+
+
+def _recording(mode, seed=2, n=40):
+    """Noisy poses of a general recording (no timestamps: paired by index) and the robot poses
+    X_BE as generated."""
+    rng = np.random.default_rng(seed)
+    X_H = make_transform(rotation_exp([2.5, 0.3, -0.4]), [0.9, -0.2, 0.6]) \
+        if mode == "eye_to_hand" else \
+        make_transform(rotation_exp([0.3, -0.2, 1.4]), [0.045, -0.012, 0.068])
+    X_F = make_transform(rotation_exp([0.1, -0.2, 0.3]), [0.02, 0.01, 0.08]) \
+        if mode == "eye_to_hand" else \
+        make_transform(rotation_exp([math.pi, 0.0, 0.3]), [0.55, 0.05, 0.0])
+    X_BE = [make_transform(rotation_exp(0.5 * rng.normal(size=3)) @ rotation_exp([math.pi, 0, 0]),
+                           [0.5, 0.0, 0.4] + 0.1 * rng.normal(size=3)) for _ in range(n)]
+    if mode == "eye_to_hand":   # X_CT = X_CB X_BE X_ET
+        exact = [inverse(X_H) @ X @ X_F for X in X_BE]
+    else:                       # X_CT = X_CE X_EB X_BT
+        exact = [inverse(X_H) @ inverse(X) @ X_F for X in X_BE]
+    X_CT = [make_transform(rotation_exp(np.radians(0.05) * rng.normal(size=3)),
+                           0.0005 * rng.normal(size=3)) @ X for X in exact]
+    return pose_stream(X_BE, None, "robot"), pose_stream(X_CT, None, "camera"), X_BE
+
+
+@pytest.mark.parametrize("mode", ["eye_to_hand", "eye_in_hand"])
+def test_observability_report_is_that_of_the_original_robot_poses(mode):
+    """The report in the result (and in calibration.json) is the analysis of the robot poses as
+    recorded (X_BE of the fitted samples), at the fit's estimate and noise — to 1e-9."""
+    robot, camera, X_BE = _recording(mode)
+    r = calibrate_streams(robot, camera, mode=mode)
+    assert r.verdict.status == "OK", r.verdict.reasons
+    kept = np.asarray(r.aligned.camera_index)[r.sample_used == "fit"]
+    assert len(kept) > 25
+    ref = ob.observability_report([X_BE[k] for k in kept], inverse(r.fit.X_H), r.fit.X_F,
+                                  r.fit.rotation_sigmas, r.fit.translation_sigmas, mode)
+    got = r.observability
+    assert got is not None and got.mode == mode
+    np.testing.assert_allclose(got.information, ref.information, rtol=1e-9,
+                               atol=1e-9 * np.abs(ref.information).max())
+    np.testing.assert_allclose(got.rotation_std_deg, ref.rotation_std_deg, rtol=1e-9)
+    np.testing.assert_allclose(got.translation_std, ref.translation_std, rtol=1e-9)
+    assert got.condition_number == pytest.approx(ref.condition_number, rel=1e-9)
+    doc = to_dict(r)["observability"]
+    np.testing.assert_allclose(doc["translation_std_m"], ref.translation_std, rtol=1e-9)
+    np.testing.assert_allclose(doc["rotation_std_deg"], ref.rotation_std_deg, rtol=1e-9)
+    # The information-based σ are the ML ones, which the reported σ only widen (correlations).
+    assert np.all(got.translation_std <= r.translation_std * (1 + 1e-6))
+    assert np.all(got.rotation_std_deg <= r.rotation_std_deg * (1 + 1e-6))
+
+
+# ------------------------------------------------------------------------- robot accuracy
+def _skew(t):
+    return np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+
+
+def _robot_covariance(t, deg, m):
+    """Closed form: δθ = −e_r, δt = −e_t + [t]× e_r with e_r ~ N(0, rad(deg)² I),
+    e_t ~ N(0, m² I)."""
+    r2 = math.radians(deg) ** 2
+    t = np.asarray(t, float)
+    C = np.zeros((6, 6))
+    C[:3, :3] = r2 * np.eye(3)
+    C[:3, 3:] = r2 * _skew(t)           # E[−e_r (−e_t + [t]× e_r)ᵀ] = −r² [t]×ᵀ = r² [t]×
+    C[3:, :3] = C[:3, 3:].T
+    C[3:, 3:] = m ** 2 * np.eye(3) + r2 * (t @ t * np.eye(3) - np.outer(t, t))
+    return C
+
+
+@pytest.mark.parametrize("deg, m, t", [
+    (0.03, 3e-4, [0.045, -0.012, 0.068]),
+    (0.5, 0.0, [0.9, -0.2, 0.6]),
+    (0.0, 0.002, [0.1, 0.2, -0.3]),
+])
+def test_robot_error_covariance_is_its_closed_form(deg, m, t):
+    X_H = make_transform(rotation_exp([0.3, -0.2, 1.4]), t)
+    np.testing.assert_allclose(robot_error_covariance(X_H, (deg, m)),
+                               _robot_covariance(t, deg, m), rtol=1e-12, atol=1e-20)
+    # Values: 0.03° per axis is 5.24e-4 rad, σ² 2.74e-7 rad² (not 9e-4 "deg²").
+    if deg == 0.03:
+        assert robot_error_covariance(X_H, (deg, m))[0, 0] == pytest.approx(2.7416e-7, rel=1e-4)
+
+
+@pytest.fixture(scope="module")
+def example_with_and_without_accuracy():
+    s = file_streams(DATA / "example_robot.tum", DATA / "example_camera.tum")
+    return (calibrate_streams(s.robot, s.camera),
+            calibrate_streams(s.robot, s.camera, robot_accuracy=(0.03, 3e-4)))
+
+
+def test_the_robots_accuracy_raises_sigma_by_its_closed_form(example_with_and_without_accuracy):
+    """On the shipped recording: the variance the robot accuracy (0.03° / 0.3 mm per axis) adds
+    is within 10 % of the closed form, on each axis, both ways (0.034° / 0.36 mm in all; a
+    degrees² slip gives 1.72° / 2.1 mm)."""
+    none, acc = example_with_and_without_accuracy
+    expected = np.diag(_robot_covariance(acc.X_EC[:3, 3], 0.03, 3e-4))
+    added = np.concatenate([np.radians(acc.rotation_std_deg) ** 2 -
+                            np.radians(none.rotation_std_deg) ** 2,
+                            acc.translation_std ** 2 - none.translation_std ** 2])
+    np.testing.assert_allclose(added / expected, 1.0, atol=0.1)
+    # The σ themselves: 0.034° and 0.35 mm per axis, not more.
+    assert np.all((0.030 < acc.rotation_std_deg) & (acc.rotation_std_deg < 0.040))
+    assert np.all((3.0e-4 < acc.translation_std) & (acc.translation_std < 4.0e-4))
+    assert acc.verdict.status == none.verdict.status == "OK"
