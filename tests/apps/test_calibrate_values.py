@@ -16,19 +16,24 @@ from handeye_drake.apps.calibrate.inputs import file_streams
 from handeye_drake.apps.calibrate.pipeline import robot_error_covariance
 from handeye_drake.apps.calibrate.report import to_dict
 from handeye_drake.estimation import observability as ob
-from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
+from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log, rpy
 from handeye_drake.recorded.formats import pose_stream
 
 DATA = Path(handeye_drake.__file__).parent / "data"
+
+
+def _recording_truth(mode):
+    """X_BC (eye-to-hand) or X_EC (eye-in-hand) of ``_recording``."""
+    return make_transform(rotation_exp([2.5, 0.3, -0.4]), [0.9, -0.2, 0.6]) \
+        if mode == "eye_to_hand" else \
+        make_transform(rotation_exp([0.3, -0.2, 1.4]), [0.045, -0.012, 0.068])
 
 
 def _recording(mode, seed=2, n=40):
     """Noisy poses of a general recording (no timestamps: paired by index) and the robot poses
     X_BE as generated."""
     rng = np.random.default_rng(seed)
-    X_H = make_transform(rotation_exp([2.5, 0.3, -0.4]), [0.9, -0.2, 0.6]) \
-        if mode == "eye_to_hand" else \
-        make_transform(rotation_exp([0.3, -0.2, 1.4]), [0.045, -0.012, 0.068])
+    X_H = _recording_truth(mode)
     X_F = make_transform(rotation_exp([0.1, -0.2, 0.3]), [0.02, 0.01, 0.08]) \
         if mode == "eye_to_hand" else \
         make_transform(rotation_exp([math.pi, 0.0, 0.3]), [0.55, 0.05, 0.0])
@@ -122,3 +127,28 @@ def test_the_robots_accuracy_raises_sigma_by_its_closed_form(example_with_and_wi
     assert np.all((0.030 < acc.rotation_std_deg) & (acc.rotation_std_deg < 0.040))
     assert np.all((3.0e-4 < acc.translation_std) & (acc.translation_std < 4.0e-4))
     assert acc.verdict.status == none.verdict.status == "OK"
+
+
+# ------------------------------------------------------------------------------- --fix
+@pytest.mark.parametrize("mode, held", [("eye_in_hand", ("yaw", "tz")),
+                                        ("eye_to_hand", ("roll", "ty")),
+                                        ("eye_to_hand", ("pitch", "yaw", "tx"))])
+def test_fix_holds_the_given_values_and_calibrates_the_rest(mode, held):
+    """``fixed`` as the command line gives it (degrees, millimetres) at the true values, none at
+    a symmetry point (yaw 80.15° eye-in-hand; roll 146.8°, pitch 20.3°, yaw 7.6° eye-to-hand):
+    those come out exactly, the rest within 4 σ of the truth."""
+    robot, camera, _ = _recording(mode)
+    X_H = _recording_truth(mode)
+    truth = dict(zip(ob.COMPONENTS, [*X_H[:3, 3], *rpy(X_H[:3, :3])]))
+    text = ",".join(f"{c}_mm={float(1000 * truth[c])!r}" if c.startswith("t") else
+                    f"{c}_deg={math.degrees(truth[c])!r}" for c in held)
+    r = calibrate_streams(robot, camera, mode=mode, fixed=text)
+    assert r.verdict.status in ("OK", "WARN"), r.verdict.reasons
+    for c in held:
+        assert r.fit.parameters[c] == pytest.approx(truth[c], abs=1e-9), c
+    err = np.concatenate([rotation_log(X_H[:3, :3] @ r.X_hand[:3, :3].T),
+                          X_H[:3, 3] - r.X_hand[:3, 3]])
+    std = np.sqrt(np.diag(r.covariance))
+    free = std > 0
+    assert np.all(np.abs(err[free]) < 4 * std[free] + 1e-12), (err, std)
+    assert np.degrees(np.linalg.norm(err[:3])) < 0.05 and np.linalg.norm(err[3:]) < 1e-3
