@@ -5,6 +5,7 @@ form (issue 22: a dropped inversion and a degrees²-for-radians² slip both pass
 one-sided checks)."""
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -152,3 +153,40 @@ def test_fix_holds_the_given_values_and_calibrates_the_rest(mode, held):
     free = std > 0
     assert np.all(np.abs(err[free]) < 4 * std[free] + 1e-12), (err, std)
     assert np.degrees(np.linalg.norm(err[:3])) < 0.05 and np.linalg.norm(err[3:]) < 1e-3
+
+
+# ----------------------------------------------------------- systematic camera uncertainty
+def _tangent_difference(X1, X2):
+    return np.concatenate([rotation_log(X1[:3, :3] @ X2[:3, :3].T), X1[:3, 3] - X2[:3, 3]])
+
+
+def test_the_systematic_camera_uncertainty_is_the_spread_it_causes():
+    """A resampler that moves every camera pose by one random offset P per draw (a systematic
+    error common to the recording, e.g. from the intrinsics): X_CE absorbs it exactly
+    (X_EC → X_EC P⁻¹), so the covariance added is the mean of δδᵀ over the draws, δ the
+    tangent difference of X_EC P⁻¹ and X_EC — to 2 %, with the warning's numbers."""
+    robot, camera, _ = _recording("eye_in_hand")
+    applied = []
+
+    def resampler(rng):
+        P = make_transform(rotation_exp(np.radians(0.2) * rng.normal(size=3)),
+                           0.001 * rng.normal(size=3))
+        applied.append(P)
+        return P[None] @ camera.poses
+
+    base = calibrate_streams(robot, camera)
+    r = calibrate_streams(robot, camera, camera_resampler=resampler)
+    assert len(applied) >= 20
+    np.testing.assert_allclose(r.fit.X_H, base.fit.X_H, atol=1e-12)  # the fit itself unchanged
+    D = np.array([_tangent_difference(r.fit.X_H @ inverse(P), r.fit.X_H) for P in applied])
+    expected = D.T @ D / len(D)
+    added = r.covariance - base.covariance
+    scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected)))
+    np.testing.assert_allclose(added / scale, expected / scale, atol=0.02)
+    # ~0.35° / 1.7 mm in all (√trace): the warning says how much.
+    rot = math.degrees(math.sqrt(np.trace(expected[:3, :3])))
+    mm = 1000 * math.sqrt(np.trace(expected[3:, 3:]))
+    assert 0.2 < rot < 0.5 and 1.0 < mm < 2.5
+    (w,) = [w for w in r.warnings if "systematic uncertainty" in w]
+    got = [float(v) for v in re.findall(r"adds ([0-9.e+-]+)° / ([0-9.e+-]+) mm", w)[0]]
+    assert got == pytest.approx([rot, mm], rel=0.02)
