@@ -260,3 +260,31 @@ def test_correlated_covariance_is_the_newey_west_sandwich(rho):
         d = np.concatenate([rotation_log(X_EC[:3, :3] @ fit.X_H[:3, :3].T),
                             X_EC[:3, 3] - fit.X_H[:3, 3]])
         assert d @ np.linalg.solve(cov_H, d) < 22.5 < d @ np.linalg.solve(fit.covariance, d)
+
+
+# ------------------------------------------------------------------------ split-half check
+def test_split_half_nees_is_chi2_6_on_average_over_seeded_recordings():
+    """The split-half check's NEES has the χ²(6) distribution when the σ are honest: over 30
+    seeded recordings the mean lies in the 99.9 % band of χ²(180) / 30 — both ways (a sum of
+    covariances mis-scaled by 2 moves it out)."""
+    from scipy.stats import chi2
+    from handeye_drake.apps.calibrate.pipeline import _split_check, ml_fit
+    from handeye_drake.vision.camera_model import apply_pose_noise
+    nees = []
+    for seed in range(30):
+        rng = np.random.default_rng(500 + seed)
+        X_EC = make_transform(rotation_exp([0.3, -0.2, 1.4]), [0.045, -0.012, 0.068])
+        X_BT = make_transform(rotation_exp([math.pi, 0.0, 0.3]), [0.55, 0.05, 0.0])
+        X_BE = np.array([make_transform(rotation_exp(0.4 * rng.normal(size=3)) @
+                                        rotation_exp([math.pi, 0, 0]),
+                                        [0.5, 0.0, 0.4] + 0.1 * rng.normal(size=3))
+                         for _ in range(32)])
+        # The fit's noise model exactly (R = exp(n_r) R̃, t = t̃ + n_t).
+        X_CT = np.array([apply_pose_noise(inverse(X @ X_EC) @ X_BT, rng.normal(size=12), "so3",
+                                          0.002, 0.001) for X in X_BE])
+        fit = ml_fit(X_BE, X_CT, X_EC, 0.002, 0.001)
+        s = _split_check(X_BE, X_CT, np.arange(32), fit, {}, seed)
+        assert s.threshold == pytest.approx(chi2.ppf(0.999, 6))
+        nees.append(s.nees)
+    lo, hi = chi2.ppf([0.0005, 0.9995], 6 * len(nees)) / len(nees)
+    assert lo < np.mean(nees) < hi, (np.mean(nees), lo, hi)
