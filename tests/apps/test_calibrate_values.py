@@ -4,6 +4,7 @@ analysis of the original robot poses, and the robot's accuracy in the σ against
 form (issue 22: a dropped inversion and a degrees²-for-radians² slip both passed the
 one-sided checks)."""
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -14,7 +15,7 @@ import pytest
 import handeye_drake
 from handeye_drake.apps.calibrate import calibrate_streams
 from handeye_drake.apps.calibrate.inputs import file_streams
-from handeye_drake.apps.calibrate.pipeline import robot_error_covariance
+from handeye_drake.apps.calibrate.pipeline import fixed_name, robot_error_covariance
 from handeye_drake.apps.calibrate.report import to_dict
 from handeye_drake.estimation import observability as ob
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log, rpy
@@ -30,14 +31,19 @@ def _recording_truth(mode):
         make_transform(rotation_exp([0.3, -0.2, 1.4]), [0.045, -0.012, 0.068])
 
 
+def _fixed_truth(mode):
+    """X_ET (eye-to-hand) or X_BT (eye-in-hand) of ``_recording``."""
+    return make_transform(rotation_exp([0.1, -0.2, 0.3]), [0.02, 0.01, 0.08]) \
+        if mode == "eye_to_hand" else \
+        make_transform(rotation_exp([math.pi, 0.0, 0.3]), [0.55, 0.05, 0.0])
+
+
 def _recording(mode, seed=2, n=40):
     """Noisy poses of a general recording (no timestamps: paired by index) and the robot poses
     X_BE as generated."""
     rng = np.random.default_rng(seed)
     X_H = _recording_truth(mode)
-    X_F = make_transform(rotation_exp([0.1, -0.2, 0.3]), [0.02, 0.01, 0.08]) \
-        if mode == "eye_to_hand" else \
-        make_transform(rotation_exp([math.pi, 0.0, 0.3]), [0.55, 0.05, 0.0])
+    X_F = _fixed_truth(mode)
     X_BE = [make_transform(rotation_exp(0.5 * rng.normal(size=3)) @ rotation_exp([math.pi, 0, 0]),
                            [0.5, 0.0, 0.4] + 0.1 * rng.normal(size=3)) for _ in range(n)]
     if mode == "eye_to_hand":   # X_CT = X_CB X_BE X_ET
@@ -49,13 +55,19 @@ def _recording(mode, seed=2, n=40):
     return pose_stream(X_BE, None, "robot"), pose_stream(X_CT, None, "camera"), X_BE
 
 
+@functools.lru_cache(maxsize=None)
+def _calibrated(mode):
+    robot, camera, X_BE = _recording(mode)
+    r = calibrate_streams(robot, camera, mode=mode)
+    assert r.verdict.status == "OK", r.verdict.reasons
+    return r, X_BE
+
+
 @pytest.mark.parametrize("mode", ["eye_to_hand", "eye_in_hand"])
 def test_observability_report_is_that_of_the_original_robot_poses(mode):
     """The report in the result (and in calibration.json) is the analysis of the robot poses as
     recorded (X_BE of the fitted samples), at the fit's estimate and noise — to 1e-9."""
-    robot, camera, X_BE = _recording(mode)
-    r = calibrate_streams(robot, camera, mode=mode)
-    assert r.verdict.status == "OK", r.verdict.reasons
+    r, X_BE = _calibrated(mode)
     kept = np.asarray(r.aligned.camera_index)[r.sample_used == "fit"]
     assert len(kept) > 25
     ref = ob.observability_report([X_BE[k] for k in kept], inverse(r.fit.X_H), r.fit.X_F,
@@ -73,6 +85,28 @@ def test_observability_report_is_that_of_the_original_robot_poses(mode):
     # The information-based σ are the ML ones, which the reported σ only widen (correlations).
     assert np.all(got.translation_std <= r.translation_std * (1 + 1e-6))
     assert np.all(got.rotation_std_deg <= r.rotation_std_deg * (1 + 1e-6))
+
+
+@pytest.mark.parametrize("mode", ["eye_to_hand", "eye_in_hand"])
+def test_the_fixed_pose_and_its_sigma(mode):
+    """The other unknown, X_BT (eye-in-hand) / X_ET (eye-to-hand), neither rotation at the
+    identity: at the truth within 4 σ per component, its σ between the Cramér–Rao bound at the
+    fit's noise and twice it, and as written in calibration.json."""
+    r, X_BE = _calibrated(mode)
+    X_F = _fixed_truth(mode)
+    err = np.concatenate([rotation_log(X_F[:3, :3] @ r.X_fixed[:3, :3].T),
+                          X_F[:3, 3] - r.X_fixed[:3, 3]])
+    std = np.sqrt(np.diag(r.fit.fixed_covariance))
+    assert np.all(np.abs(err) < 4 * std), (err, std)
+    kept = np.asarray(r.aligned.camera_index)[r.sample_used == "fit"]
+    info = ob.information_matrix([X_BE[k] for k in kept], inverse(r.fit.X_H), r.fit.X_F,
+                                 r.fit.rotation_sigmas, r.fit.translation_sigmas, mode)
+    crb = np.sqrt(np.diag(np.linalg.inv(info))[6:])
+    assert np.all(std >= crb * (1 - 1e-6)) and np.all(std <= 2 * crb), (std / crb)
+    doc = to_dict(r)[fixed_name(mode)]
+    np.testing.assert_allclose(doc["matrix"], r.X_fixed, atol=1e-15)
+    np.testing.assert_allclose(doc["std"]["rotation_deg"], np.degrees(std[:3]), rtol=1e-12)
+    np.testing.assert_allclose(doc["std"]["translation_m"], std[3:], rtol=1e-12)
 
 
 # ------------------------------------------------------------------------- robot accuracy
