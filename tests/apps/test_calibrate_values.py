@@ -322,3 +322,40 @@ def test_split_half_nees_is_chi2_6_on_average_over_seeded_recordings():
         nees.append(s.nees)
     lo, hi = chi2.ppf([0.0005, 0.9995], 6 * len(nees)) / len(nees)
     assert lo < np.mean(nees) < hi, (np.mean(nees), lo, hi)
+
+
+# ------------------------------------------------------------------------ roll-pitch-yaw σ
+def _rpy_covariance(X, C):
+    """Closed form: R = Rz(y) Ry(p) Rx(r), δθ = E d(r, p, y) (left perturbation), so
+    cov(r, p, y) = E⁻¹ C E⁻ᵀ."""
+    r, p, y = rpy(X[:3, :3])
+    E = np.array([[math.cos(y) * math.cos(p), -math.sin(y), 0.0],
+                  [math.sin(y) * math.cos(p), math.cos(y), 0.0],
+                  [-math.sin(p), 0.0, 1.0]])
+    Ei = np.linalg.inv(E)
+    return Ei @ C[:3, :3] @ Ei.T
+
+
+@pytest.mark.parametrize("rpy_deg", [[17.0, -23.0, 80.0], [-140.0, 25.0, -65.0],
+                                     [146.8, 20.3, 7.6]])
+def test_rpy_sigma_is_the_propagated_covariance(rpy_deg):
+    """calibration.json's "rpy_deg" σ: the closed form, and the spread of roll-pitch-yaw over
+    rotations drawn from the covariance (an anisotropic one, correlated)."""
+    from handeye_drake.apps.calibrate.report import rpy_std_deg
+    from handeye_drake.estimation.se3 import rotation_from_rpy
+    X = make_transform(rotation_from_rpy(np.radians(rpy_deg)), [0.1, 0.2, 0.3])
+    A = np.array([[1.0, 0.3, -0.2], [0.0, 2.0, 0.5], [0.0, 0.0, 0.7]]) * np.radians(0.05)
+    C = np.zeros((6, 6))
+    C[:3, :3] = A @ A.T
+    C[3:, 3:] = 1e-6 * np.eye(3)
+    expected = np.degrees(np.sqrt(np.diag(_rpy_covariance(X, C))))
+    np.testing.assert_allclose(rpy_std_deg(X, C), expected, rtol=1e-5)
+    # Monte Carlo, with SciPy's extrinsic x-y-z angles (the same convention, another code).
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(7)
+    draws = (Rotation.from_rotvec(rng.normal(size=(20000, 3)) @ A.T)
+             * Rotation.from_matrix(X[:3, :3])).as_euler("xyz")
+    centre = Rotation.from_matrix(X[:3, :3]).as_euler("xyz")
+    np.testing.assert_allclose(np.degrees(centre), rpy_deg, atol=1e-9)
+    spread = np.degrees(np.std(np.angle(np.exp(1j * (draws - centre))), axis=0))
+    np.testing.assert_allclose(spread, expected, rtol=0.04)

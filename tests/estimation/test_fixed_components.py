@@ -113,3 +113,30 @@ def test_parse_fixed_reads_non_symmetric_values_with_their_sign():
                                "roll": math.radians(17), "pitch": math.radians(-23),
                                "yaw": math.radians(80)}, abs=1e-15)
     assert ob.parse_fixed("yaw_deg=-100") == pytest.approx({"yaw": math.radians(-100)})
+
+
+@pytest.mark.parametrize("mode", ["eye_in_hand", "eye_to_hand"])
+@pytest.mark.parametrize("held", [(), ("tz",), ("yaw",)], ids=lambda h: "+".join(h) or "none")
+def test_parameter_std_is_the_propagated_covariance(mode, held):
+    """The σ of roll, pitch, yaw: E⁻¹ C E⁻ᵀ of the rotation covariance (δθ = E d(r, p, y),
+    R = Rz(y) Ry(p) Rx(r)), E written out here; translations: √diag; held ones 0."""
+    rng = np.random.default_rng(33)
+    X_BE, X_CT, X_HC, _ = _recording(mode, rng, K=12, noise=True)
+    truth = _values(X_HC)
+    r = ob.refine_ml_poses_fixed(X_BE, X_CT, inverse(X_HC), SR, ST, mode=mode,
+                                 fixed={c: truth[c] for c in held})
+    roll, pitch, yaw = (r.parameters[c] for c in ("roll", "pitch", "yaw"))
+    E = np.array([[math.cos(yaw) * math.cos(pitch), -math.sin(yaw), 0.0],
+                  [math.sin(yaw) * math.cos(pitch), math.cos(yaw), 0.0],
+                  [-math.sin(pitch), 0.0, 1.0]])
+    C = r.X_HC_covariance
+    Ei = np.linalg.inv(E)
+    expected = np.sqrt(np.maximum(np.diag(Ei @ C[:3, :3] @ Ei.T), 0.0))
+    for c, v in zip(("roll", "pitch", "yaw"), expected):
+        assert r.parameter_std[c] == pytest.approx(0.0 if c in held else v, rel=1e-9,
+                                                   abs=1e-12), c
+    for i, c in enumerate(("tx", "ty", "tz")):
+        assert r.parameter_std[c] == pytest.approx(
+            0.0 if c in held else math.sqrt(C[3 + i, 3 + i]), rel=1e-12), c
+    if "yaw" in held:  # the held angle really is held in the covariance, not only in the report
+        assert expected[2] < 1e-6 * expected[:2].max()
