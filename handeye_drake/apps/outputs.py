@@ -7,7 +7,10 @@ Policy, the same for every command (``simulate``, ``calibrate``, ``reproduce``, 
 - A new or empty directory is used as is. A directory holding this command's earlier output
   (its ``.handeye-drake-output.json`` manifest names the command) is reused: the files the new run
   writes replace the old ones, and the files of the earlier run that the new one does not write
-  again are removed, so no stale result sits beside fresh ones.
+  again are removed, so no stale result sits beside fresh ones. Only a file inside ``--out``
+  (no ``..``, no absolute path, no symbolic link on the way), recorded in the manifest with its
+  SHA-256 and unchanged since, is ever removed: a hand-edited or copied manifest cannot make a
+  run delete anything else.
 - Any other non-empty directory is refused unless ``--force`` is given; even then, no file the
   tool did not write is ever deleted or overwritten (a file of the same name is refused).
 - Files outside ``--out`` given explicitly (``--meshcat-html FILE``, ``--json FILE``) are written
@@ -16,6 +19,7 @@ Policy, the same for every command (``simulate``, ``calibrate``, ``reproduce``, 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -32,6 +36,38 @@ def _manifest(path: Path) -> dict | None:
     return data if isinstance(data, dict) and isinstance(data.get("files"), list) else None
 
 
+def _sha256(path: Path) -> str | None:
+    try:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        return h.hexdigest()
+    except OSError:
+        return None
+
+
+def _inside(root: Path, name) -> Path | None:
+    """``root / name`` when ``name`` is a relative path that stays inside ``root`` with no
+    symbolic link on the way (a manifest's entry); else None."""
+    if not isinstance(name, str) or not name or "\0" in name:
+        return None
+    rel = Path(name)
+    if rel.is_absolute() or rel.drive or any(part in ("..", "") for part in rel.parts):
+        return None
+    p = root
+    for part in rel.parts:
+        p = p / part
+        if p.is_symlink():
+            return None
+    try:
+        if not p.resolve().is_relative_to(root.resolve()):
+            return None
+    except (OSError, RuntimeError):
+        return None
+    return p
+
+
 @dataclass
 class OutputDir:
     """An output directory claimed by one command run (see the module docstring).
@@ -45,6 +81,7 @@ class OutputDir:
     force: bool = False
     earlier: list = field(default_factory=list)
     claimed: set = field(default_factory=set)
+    hashes: dict = field(default_factory=dict)  # earlier files' SHA-256 from the manifest
 
     def path(self, name: str) -> Path:
         p = self.root / name
@@ -61,17 +98,24 @@ class OutputDir:
             self._write_manifest(sorted(set(self.earlier) | self.claimed))
         return p
 
-    def _write_manifest(self, names) -> None:
+    def _write_manifest(self, names, hashes=None) -> None:
+        names = list(names)
+        hashes = {n: h for n, h in (self.hashes if hashes is None else hashes).items()
+                  if n in names and h}
         (self.root / MANIFEST).write_text(json.dumps(
-            {"command": self.command, "files": list(names)}, indent=1) + "\n")
+            {"command": self.command, "files": names, "sha256": hashes}, indent=1) + "\n")
 
     def finish(self, written) -> None:
         names = sorted({str(Path(w).resolve().relative_to(self.root.resolve()))
                         for w in written if Path(w).resolve().is_relative_to(self.root.resolve())})
         for stale in set(self.earlier) - set(names):
-            p = self.root / stale
-            if p.is_file():
+            # Removed only when the tool wrote it (its hash is in the manifest) and nobody
+            # changed it since; anything else stays where it is.
+            p = _inside(self.root, stale)
+            if p is not None and p.is_file() and self.hashes.get(stale) \
+                    and _sha256(p) == self.hashes[stale]:
                 p.unlink()
+        self.hashes = {n: _sha256(self.root / n) for n in names}
         self._write_manifest(names)
 
 
@@ -80,12 +124,17 @@ def prepare_output_dir(out, command: str, force: bool = False) -> OutputDir:
     root = Path(out)
     if root.exists() and not root.is_dir():
         raise ValueError(f"--out {out}: exists and is not a directory")
-    earlier = []
+    earlier, hashes = [], {}
     if root.is_dir():
         entries = [e for e in os.listdir(root) if e != MANIFEST]
         manifest = _manifest(root)
         if manifest is not None and manifest.get("command") == command:
-            earlier = [str(f) for f in manifest["files"]]
+            # Entries that would lead outside --out (../x, /abs, a symbolic link) are not the
+            # tool's output: dropped, never touched.
+            earlier = [f for f in manifest["files"] if _inside(root, f) is not None]
+            given = manifest.get("sha256")
+            hashes = {f: h for f, h in given.items() if f in earlier and isinstance(h, str)} \
+                if isinstance(given, dict) else {}
         elif entries and not force:
             owner = (f"the output of 'handeye-drake {manifest['command']}'" if manifest
                      else "not an output directory of this tool")
@@ -99,7 +148,7 @@ def prepare_output_dir(out, command: str, force: bool = False) -> OutputDir:
         probe.unlink()
     except OSError as e:
         raise ValueError(f"--out {out}: cannot write there ({e.strerror or e})") from None
-    return OutputDir(root=root, command=command, force=force, earlier=earlier)
+    return OutputDir(root=root, command=command, force=force, earlier=earlier, hashes=hashes)
 
 
 def check_output_file(path, option: str, force: bool = False) -> Path:

@@ -371,6 +371,46 @@ def test_a_ros_bag_through_the_command(tmp_path):
     assert _within(TRUE_X_EC, np.array(doc["X_EC"]["matrix"]), doc["X_EC"])
 
 
+def test_exports_hang_from_the_frame_the_robot_poses_were_of(tmp_path, capsys):
+    """--robot-frames base_link:wrist_3_link gives the camera in wrist_3_link: the exports'
+    joint must hang from wrist_3_link (not the default tool0, 99.6 mm away); an explicit
+    --parent-frame that is another frame gets a note."""
+    from tests.recorded.test_bags import STATIC, TRUE_X_EC, simulate, write_recording
+    path = write_recording(tmp_path / "cell.bag", "ros1", simulate(0))
+    code, doc = _run(tmp_path, "--bag", path, "--robot-frames", "base_link:wrist_3_link",
+                     "--camera-topic", "/camera/target_pose", "--export", "urdf,ros2,json")
+    out = capsys.readouterr().out
+    assert code == 0 and "exports hang from wrist_3_link" in out
+    X_wrist_camera = STATIC["flange"][1] @ STATIC["tool0"][1] @ TRUE_X_EC
+    X = np.array(doc["X_EC"]["matrix"])
+    assert _within(X_wrist_camera, X, doc["X_EC"])
+    exported = json.loads((tmp_path / "out" / "handeye.json").read_text())
+    assert exported["parent_frame"] == "wrist_3_link"
+    assert np.allclose(exported["X_EC"]["matrix"], X)
+    assert 'parent link="wrist_3_link"' in (tmp_path / "out" / "handeye.urdf").read_text()
+    launch = (tmp_path / "out" / "handeye.launch.py").read_text()
+    assert "wrist_3_link" in launch and "tool0" not in launch
+    code, doc = _run(tmp_path, "--bag", path, "--robot-frames", "base_link:wrist_3_link",
+                     "--camera-topic", "/camera/target_pose", "--export", "json",
+                     "--parent-frame", "tool0", name="explicit")
+    assert code == 0 and "the result is the camera in wrist_3_link" in capsys.readouterr().out
+    assert json.loads((tmp_path / "explicit" / "handeye.json").read_text())[
+        "parent_frame"] == "tool0"
+
+
+@pytest.mark.parametrize("mode,frames,parent", [("eye_in_hand", ["world", "/flange"], "flange"),
+                                                ("eye_to_hand", ["/world", "tool0"], "world"),
+                                                ("eye_to_hand", ["base", "ee"], "base")])
+def test_the_export_parent_defaults_to_the_robot_frames_of_the_mode(mode, frames, parent):
+    from types import SimpleNamespace
+
+    from handeye_drake.apps.calibrate.command import _parent_frame
+    args = SimpleNamespace(parent_frame=None)
+    streams = SimpleNamespace(inputs={"bag": {"robot_frames": frames}})
+    assert _parent_frame(args, streams, mode)[0] == parent
+    assert _parent_frame(args, SimpleNamespace(inputs={"robot": {}}), mode) == (None, "")
+
+
 def test_inputs_must_be_one_source(tmp_path, capsys):
     assert main(["calibrate", "--robot", ROBOT, "--out", str(tmp_path / "o")]) == 2
     assert "give one of" in capsys.readouterr().err

@@ -388,8 +388,11 @@ def verdict(result) -> Verdict:
             f"{s.rotation_diff_deg:.3g}° / {1000 * s.translation_diff:.3g} mm apart, NEES "
             f"{s.nees:.3g} > {s.threshold:.3g} — unmodelled effects (clock offset, robot "
             "kinematic errors, a target that moved) dominate the noise"))
+    for t in getattr(result, "fixed_tests", None) or []:
+        if t.level:
+            reasons.append(Reason(t.level, "fixed_value", t.message))
     obs = result.observability
-    if obs is not None and not result.settings["fixed"]:
+    if obs is not None:  # with held components: the analysis given their values
         if not obs.observable:
             reasons.append(Reason("FAIL", "unobservable", "; ".join(obs.messages)))
         elif obs.weak:

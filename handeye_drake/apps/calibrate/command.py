@@ -203,8 +203,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="also write the result as urdf,xacro,ros2,drake,camera_config,json,tum "
                           "(comma-separated) or all; not on a FAIL verdict")
     out.add_argument("--parent-frame", default=None, metavar="LINK",
-                     help="--export: link the camera hangs from (default tool0; base_link for "
-                          "eye-to-hand)")
+                     help="--export: link the camera hangs from (default: with --bag, the "
+                          "end-effector of --robot-frames, its base for eye-to-hand; else "
+                          "tool0, base_link for eye-to-hand)")
     out.add_argument("--child-frame", default="camera_optical_frame", metavar="FRAME",
                      help="--export: the camera frame (OpenCV/ROS optical: x right, y down, "
                           "z forward)")
@@ -285,10 +286,11 @@ def run_calibrate_command(args) -> int:
         from .online import plot_online
         written.append(plot_online(result, out.path("online_convergence.png")))
     written += [r.drawing for r in streams.images if r.drawing]
+    parent_frame, parent_note = _parent_frame(args, streams, mode)
     if args.export and result.verdict.status != "FAIL":
         from ...recorded.exports import export_texts
         texts = export_texts(result.X_hand, args.export, mode=mode,
-                             parent_frame=args.parent_frame, child_frame=args.child_frame,
+                             parent_frame=parent_frame, child_frame=args.child_frame,
                              X_std=result.covariance, intrinsics=intrinsics_used)
         for name, text in texts.items():
             p = out.path(name)
@@ -302,10 +304,32 @@ def run_calibrate_command(args) -> int:
     print(table(result))
     if args.export and result.verdict.status == "FAIL":
         print("no export: the verdict is FAIL")
+    elif args.export and parent_note:
+        print(parent_note)
     print("wrote: " + ", ".join(str(p) for p in written[:12])
           + (f", … ({len(written) - 12} more)" if len(written) > 12 else ""))
     status = result.verdict.status
     return 1 if status == "FAIL" or (status == "WARN" and args.strict) else 0
+
+
+def _parent_frame(args, streams, mode) -> tuple[str | None, str]:
+    """The frame the exports hang the result from, and a note on it: ``--parent-frame`` if
+    given, else the frame the robot poses were of — a bag's ``--robot-frames`` end-effector
+    (eye-in-hand) or base (eye-to-hand) — else the exports' default (tool0 / base_link)."""
+    frames = (streams.inputs or {}).get("bag", {}).get("robot_frames")
+    if not frames:
+        return args.parent_frame, ""
+    own = str(frames[1] if mode == "eye_in_hand" else frames[0]).lstrip("/")
+    if args.parent_frame is None:
+        which = "end-effector" if mode == "eye_in_hand" else "base"
+        return own, (f"exports hang from {own}, the {which} frame of --robot-frames "
+                     "(--parent-frame to change)")
+    if args.parent_frame.lstrip("/") != own:
+        return args.parent_frame, (
+            f"note: the exports hang from --parent-frame {args.parent_frame}, but the result is "
+            f"the camera in {own} (--robot-frames {':'.join(frames)}); the two must be the same "
+            "frame")
+    return args.parent_frame, ""
 
 
 #: Rows of the printed per-image table (all of them are in calibration.json).

@@ -44,10 +44,11 @@ from scipy.stats import chi2
 
 from ...estimation.ml import (pose_jacobians, pose_residual_vectors, pose_whitening,
                               refine_ml_poses)
-from ...estimation.observability import (ObservabilityReport, UnobservableError, check_fixed,
-                                         observability_report, parse_fixed,
+from ...estimation.observability import (COMPONENTS, ObservabilityReport, UnobservableError,
+                                         _rpy_rate_matrix, analyze_observability, check_fixed,
+                                         information_matrix, observability_report, parse_fixed,
                                          recording_observability, refine_ml_poses_fixed)
-from ...estimation.se3 import inverse, inverse_tangent_jacobian, rotation_log
+from ...estimation.se3 import inverse, inverse_tangent_jacobian, rotation_log, rpy
 from ...estimation.solvers import METHODS
 from ...recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
                                align_streams, estimate_time_offset)
@@ -284,6 +285,7 @@ class CalibrationResult:
     inputs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     corners: object = None          # ``corners.CornerStage`` (image inputs), else None
+    fixed_tests: list = field(default_factory=list)  # ``FixedTest`` per --fix component
 
     @property
     def X_hand(self) -> np.ndarray:
@@ -708,7 +710,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         fit.covariance, fit.fixed_covariance, correlation = correlated_covariance(
             X_R, X_CT, kept, fit)
     if robot_accuracy is not None:
-        fit.covariance = fit.covariance + robot_error_covariance(fit.X_H, robot_accuracy)
+        # A held component stays exact: the robot's error is conditioned on it.
+        fit.covariance = fit.covariance + conditioned_on_fixed(
+            robot_error_covariance(fit.X_H, robot_accuracy), fit.X_H, fixed)
+    fixed_tests = [fixed_component_test(X_R, X_CT, fit_idx, fit, fixed, c, given_for(aligned),
+                                        robot_accuracy) for c in fixed]
 
     systematic = None
     if camera_resampler is not None:
@@ -734,6 +740,9 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         X_BE_kept = X_R[kept] if mode == "eye_in_hand" else inverse_stack(X_R[kept])
         observability = observability_report(list(X_BE_kept), inverse(fit.X_H), fit.X_F,
                                              fit.rotation_sigmas, fit.translation_sigmas, mode)
+        if fixed:
+            observability = _observability_given_fixed(
+                observability, list(X_BE_kept), fit, mode, fixed)
     except ValueError as e:
         warnings.append(f"observability analysis failed: {e}")
 
@@ -756,7 +765,10 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                   [float(v) for v in robot_accuracy],
                   "quaternion_streams": tuple(quaternion_streams)},
         seed=int(seed), time_offset_refined=refined, warnings=warnings,
-        correlation=correlation)
+        correlation=correlation, fixed_tests=fixed_tests)
+    for t in fixed_tests:
+        if t.note:
+            warnings.append(t.note)
     reading = checks.reading_of(result)
     result.hypotheses = checks.try_alternatives(
         robot, camera, reading, checks.default_alternatives(robot, camera, reading)
@@ -767,6 +779,144 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         result.online = [replay(result, online_step_deg, min_rotation_deg, name)
                          for name in ESTIMATORS]
     return result
+
+
+# ------------------------------------------------------------------------- held components
+#: A held (--fix) value this many σ from what the data say about that component: FAIL; beyond
+#: ``FIXED_WARN_SIGMA``: WARN.
+FIXED_FAIL_SIGMA = 5.0
+FIXED_WARN_SIGMA = 3.0
+
+
+def _component_rows(X_H, fixed) -> np.ndarray:
+    """(k, 6) rows a_c with δc = a_c · [δθ; δt] of X_HC (about / along H's axes) for the
+    held components: a translation directly, an angle through the roll-pitch-yaw rates."""
+    rows = []
+    E_inv = None
+    for c in fixed:
+        if c.startswith("t"):
+            rows.append(np.eye(6)[3 + "xyz".index(c[1])])
+        else:
+            if E_inv is None:
+                E_inv = np.linalg.pinv(_rpy_rate_matrix(rpy(np.asarray(X_H)[:3, :3])))
+            rows.append(np.concatenate([E_inv[("roll", "pitch", "yaw").index(c)],
+                                        np.zeros(3)]))
+    return np.array(rows).reshape(-1, 6)
+
+
+def conditioned_on_fixed(C, X_H, fixed) -> np.ndarray:
+    """The covariance C (6×6, X_HC's error state) given the held components' values:
+    C − C Aᵀ (A C Aᵀ)⁺ A C, exactly zero on held translations."""
+    if not fixed:
+        return C
+    A = _component_rows(X_H, fixed)
+    out = C - C @ A.T @ np.linalg.pinv(A @ C @ A.T) @ A @ C
+    for c in fixed:
+        if c.startswith("t"):
+            i = 3 + "xyz".index(c[1])
+            out[i, :] = out[:, i] = 0.0
+    return 0.5 * (out + out.T)
+
+
+def component_value(X_H, covariance, c) -> tuple[float, float]:
+    """(value, σ) of component ``c`` (``COMPONENTS``: m, rad) of X_HC with its covariance."""
+    a = _component_rows(X_H, [c])[0]
+    sigma = math.sqrt(max(float(a @ covariance @ a), 0.0))
+    X_H = np.asarray(X_H)
+    if c.startswith("t"):
+        return float(X_H["xyz".index(c[1]), 3]), sigma
+    return float(rpy(X_H[:3, :3])[("roll", "pitch", "yaw").index(c)]), sigma
+
+
+@dataclass
+class FixedTest:
+    """A held (--fix) component tested against the data: the fit with that component free
+    (the other held ones still held) gives ``data_value`` ± ``data_std``; ``sigmas`` is how
+    far the held value is from it. ``data_value`` None: the data do not determine it (that is
+    what --fix is for)."""
+    component: str
+    value: float
+    data_value: float | None = None
+    data_std: float | None = None
+    sigmas: float | None = None
+    level: str = ""     # "FAIL", "WARN" or "" (consistent, or not determined by the data)
+    message: str = ""
+    note: str = ""      # consistent and determined by the data anyway
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("component", "value", "data_value", "data_std",
+                                              "sigmas", "level", "message")}
+
+
+def _component_text(c, v, std=None) -> str:
+    if c.startswith("t"):
+        return f"{1000 * v:.4g} mm" + ("" if std is None else f" ± {1000 * std:.2g} mm")
+    return f"{math.degrees(v):.4g}°" + ("" if std is None else f" ± {math.degrees(std):.2g}°")
+
+
+def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accuracy
+                         ) -> FixedTest:
+    """``FixedTest`` of the held component ``c``: the samples ``idx`` refitted (outliers and
+    noise re-estimated) with ``c`` free; its σ includes the residual correlation and the
+    robot's accuracy as the result's does."""
+    value = float(fixed[c])
+    rest = {k: v for k, v in fixed.items() if k != c}
+    held = "--fix " + c + ("" if c.startswith("t") else "_deg") + "=" + (
+        f"{value:g}" if c.startswith("t") else f"{math.degrees(value):g}")
+    try:
+        free, kept = _fit_with_outliers(X_R, X_CT, idx, fit.X_H, rest, given)
+        cov = free.covariance
+        if not rest:
+            cov = correlated_covariance(X_R, X_CT, kept, free)[0]
+        if robot_accuracy is not None:
+            cov = cov + conditioned_on_fixed(robot_error_covariance(free.X_H, robot_accuracy),
+                                             free.X_H, rest)
+        data, std = component_value(free.X_H, cov, c)
+    except ValueError:  # UnobservableError among them: the data leave c to the user
+        return FixedTest(c, value)
+    if not (math.isfinite(data) and math.isfinite(std)) or std <= 0:
+        return FixedTest(c, value)
+    diff = value - data
+    if not c.startswith("t"):
+        diff = (diff + math.pi) % (2 * math.pi) - math.pi
+    z = abs(diff) / std
+    said = (f"with {c} free the data give {c} = {_component_text(c, data, std)}, "
+            f"{z:.3g}σ from the {_component_text(c, value)} held ({held})")
+    if z > FIXED_FAIL_SIGMA:
+        return FixedTest(c, value, data, std, z, "FAIL", f"the value held does not fit the "
+                         f"data: {said} — correct the value, or drop it from --fix (the data "
+                         f"determine {c})")
+    if z > FIXED_WARN_SIGMA:
+        return FixedTest(c, value, data, std, z, "WARN", f"the value held fits the data "
+                         f"poorly: {said} — check it, or drop it from --fix (the data "
+                         f"determine {c})")
+    return FixedTest(c, value, data, std, z, "", "", note=(
+        f"{held}: the data determine {c} themselves ({_component_text(c, data, std)}, "
+        f"{z:.2g}σ from the value held); --fix is for components the motions leave "
+        "undetermined, and holding one the data determine only hides a mistake in it"))
+
+
+def _observability_given_fixed(report, X_BE, fit: Fit, mode, fixed) -> ObservabilityReport:
+    """The observability report with the held components known: their directions get the
+    information of the best-determined one (so they are neither unobservable nor weak, and no
+    fix is suggested for them), and held translations get σ 0."""
+    X_CH = inverse(fit.X_H)
+    info = information_matrix(X_BE, X_CH, fit.X_F, fit.rotation_sigmas,
+                              fit.translation_sigmas, mode)
+    L = report.length_scale
+    D = np.diag([1.0, 1.0, 1.0, L, L, L])
+    lam_max = float(np.linalg.eigvalsh(D @ report.information @ D)[-1])
+    J = inverse_tangent_jacobian(X_CH)  # δ_HC = J δ_CH
+    prior = np.zeros((12, 12))
+    for c, a in zip(fixed, _component_rows(fit.X_H, fixed)):
+        k = lam_max / (L * L if c.startswith("t") else 1.0) / max(float(a @ a), 1e-12)
+        b = J.T @ a
+        prior[:6, :6] += k * np.outer(b, b)
+    out = analyze_observability(info + prior, X_CH, mode, X_BE_list=X_BE, length_scale=L)
+    for c in fixed:
+        if c.startswith("t"):
+            out.translation_std[COMPONENTS.index(c)] = 0.0
+    return out
 
 
 #: Draws of ``camera_resampler``.
