@@ -502,14 +502,17 @@ def fit_corners(data: CornerData, X_H0, X_F0, intrinsics0, model: str = "none",
     rounds = max_rounds if robust else 1
     for rnd in range(rounds):
         huber = robust and rnd == 0
-        for _ in range(max_em if estimate_noise else 1):
+        for em in range(max_em if estimate_noise else 1):
             weights = (corner_ok & image_ok[data.image]).astype(float)
             if huber:
                 r = _linearize(data, st, S_i, free_scale, False, frame)[0]
                 norm = np.linalg.norm(r, axis=1) / sigma
                 weights = weights * np.minimum(1.0, HUBER_K / np.maximum(norm, 1e-12))
+            # After the first solve of a round, each EM step moves the noise levels a little:
+            # a few warm-started iterations follow them.
             st, it, H_s, cost, P_e, r, J_e = _solve_gn(data, st, S_i, free_scale, v0,
-                                                           sigma, ps, weights, frame)
+                                                       sigma, ps, weights, frame,
+                                                       max_iter=30 if em == 0 else 3)
             total_it += it
             if not estimate_noise:
                 break

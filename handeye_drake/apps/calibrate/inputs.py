@@ -117,7 +117,9 @@ def _natural_key(path: Path):
 
 def image_paths(specs) -> list[Path]:
     """Files, directories (their images) and globs, naturally sorted by file name
-    (img2 before img10); duplicates once."""
+    (img2 before img10); duplicates once. ``specs``: one path or glob, or a list of them."""
+    if isinstance(specs, (str, Path)):
+        specs = [specs]
     out = []
     for spec in specs:
         p = Path(spec)
