@@ -95,3 +95,50 @@ def test_refine_intrinsics_is_validated(tmp_path, capsys):
                  TRUTH["target"], "--refine-intrinsics", "fisheye", "--out", str(tmp_path / "o")])
     assert code == 2 and "--refine-intrinsics" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------ both modes, on synthesized images (no renderer)
+def _synth_calibrate(tmp_path, truth, folder, *args):
+    out = tmp_path / "out"
+    code = main(["calibrate", "--images", str(folder), "--robot", str(folder / "robot_poses.tum"),
+                 "--target", truth["spec"], *map(str, args), "--out", str(out)])
+    return code, json.loads((out / "calibration.json").read_text())
+
+
+@pytest.mark.parametrize("mode", ["eye_in_hand", "eye_to_hand"])
+def test_both_modes_from_images_within_sigma(tmp_path, mode):
+    from tests.image_synth import synthesize
+    truth = synthesize(tmp_path / "imgs", mode, n=12, seed=1)
+    code, doc = _synth_calibrate(tmp_path, truth, tmp_path / "imgs", "--intrinsics",
+                                 truth["intrinsics"], "--mode", mode.replace("_", "-"),
+                                 "--robot-accuracy", "0,0")
+    key = "X_EC" if mode == "eye_in_hand" else "X_BC"
+    assert code == 0 and doc["verdict"]["status"] == "OK", doc["verdict"]
+    assert doc["corner_level"]["images_used"] == 12
+    assert doc["corner_level"]["pose_error_sigma"]["frame"] == (
+        "camera" if mode == "eye_in_hand" else "target")
+    assert _within(truth["X_hand"], np.array(doc[key]["matrix"]), doc[key], k=3.5)
+
+
+def test_lens_distortion_left_out_of_the_given_intrinsics_is_refined_and_named(tmp_path):
+    from tests.image_synth import synthesize
+    truth = synthesize(tmp_path / "imgs", "eye_to_hand", n=12, seed=2,
+                       distortion=(-0.15, 0.06, 0.0, 0.0, 0.0))
+    code, doc = _synth_calibrate(tmp_path, truth, tmp_path / "imgs", "--intrinsics",
+                                 truth["intrinsics"], "--mode", "eye-to-hand")
+    assert code == 0 and doc["intrinsics"]["refined"] in ("k1k2", "full")
+    assert [r["code"] for r in doc["verdict"]["reasons"]] == ["intrinsics"]
+    assert "k1" in doc["verdict"]["reasons"][0]["message"]
+    k1 = doc["intrinsics"]["distortion"][0]
+    assert abs(k1 + 0.15) < 5 * doc["intrinsics"]["sigma"]["k1"] + 0.01
+    assert _within(truth["X_hand"], np.array(doc["X_BC"]["matrix"]), doc["X_BC"], k=3.5)
+
+
+def test_eye_to_hand_wrong_size_is_named(tmp_path):
+    from tests.image_synth import synthesize
+    truth = synthesize(tmp_path / "imgs", "eye_to_hand", n=12, seed=3)
+    truth["spec"] = "charuco:7x5:0.038:0.0285:DICT_5X5_100"     # 5 % too small
+    code, doc = _synth_calibrate(tmp_path, truth, tmp_path / "imgs", "--intrinsics",
+                                 truth["intrinsics"], "--mode", "eye-to-hand")
+    assert code == 1 and [r["code"] for r in doc["verdict"]["reasons"]] == ["target_size"]
+    assert abs(doc["corner_level"]["scale"]["factor"] - 0.04 / 0.038) < 0.005
