@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from handeye_drake import rotation_error_deg
-from handeye_drake.apps.calibrate import bag_image_streams
+from handeye_drake.calibration import bag_image_streams
 from handeye_drake.apps.cli import main
 from handeye_drake.apps.outputs import prepare_output_dir
 from handeye_drake.recorded.bags import iter_images, read_bag

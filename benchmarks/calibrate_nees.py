@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from calibrate_vs_opencv import simulate_recording  # noqa: E402
-from handeye_drake.apps.calibrate import calibrate_streams  # noqa: E402
+from handeye_drake.calibration import calibrate_streams  # noqa: E402
 from handeye_drake.estimation.se3 import rotation_log  # noqa: E402
 
 

@@ -4,7 +4,7 @@ held-out data: is the default answer the best one?
     OPENBLAS_NUM_THREADS=1 python benchmarks/calibrate_vs_opencv.py [--seeds 20] [--json FILE]
         [--datasets recording images simulated]
 
-Every method is scored on the same samples, by the pose residuals (``recorded.consistency.
+Every method is scored on the same samples, by the pose residuals (``estimation.consistency.
 pose_residuals``: angle (deg) and distance (mm) between each measured X_CT and the one the model
 X_CT = X_EC⁻¹ · X_BE⁻¹ · X_BT predicts) of samples none of them was fitted on.
 
@@ -60,10 +60,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from handeye_drake.apps.accuracy import OPENCV_METHODS, opencv_calibrate  # noqa: E402
-from handeye_drake.apps.calibrate import calibrate_streams, file_streams, image_streams  # noqa
+from handeye_drake.calibration import calibrate_streams, file_streams, image_streams  # noqa
 from handeye_drake.estimation.errors import rotation_error_deg  # noqa: E402
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_from_rpy  # noqa
-from handeye_drake.recorded.consistency import pose_residuals  # noqa: E402
+from handeye_drake.estimation.consistency import pose_residuals  # noqa: E402
 from handeye_drake.recorded.formats import pose_stream  # noqa: E402
 
 DATA = ROOT / "handeye_drake" / "data"

@@ -38,7 +38,7 @@ from pydrake.systems.sensors import CameraConfig  # noqa: E402
 
 from handeye_drake.estimation.se3 import rotation_angle  # noqa: E402
 from handeye_drake.recorded import bags, exports  # noqa: E402
-from handeye_drake.apps.calibrate import calibrate_streams  # noqa: E402
+from handeye_drake.calibration import calibrate_streams  # noqa: E402
 from handeye_drake.recorded.example import TRUE_X_EC  # noqa: E402
 from handeye_drake.recorded.formats import read_poses  # noqa: E402
 

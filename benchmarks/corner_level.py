@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from scipy.stats import chi2
 
-from handeye_drake.apps.calibrate.pipeline import ml_fit
+from handeye_drake.calibration.pipeline import ml_fit
 from handeye_drake.estimation import reprojection as rp
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log
 from handeye_drake.estimation.solvers import calibrate_hand_eye
@@ -97,7 +97,7 @@ def accuracy(seeds: int, n: int):
                     (*errors(calibrate_hand_eye(list(X_BE), list(X_CT), m)), math.nan))
             start = calibrate_hand_eye(list(X_BE), list(X_CT), "park")
             pose = ml_fit(X_BE, X_CT, start, 1e-3, 1e-3)
-            from handeye_drake.apps.calibrate.pipeline import estimate_noise, residual_vectors
+            from handeye_drake.calibration.pipeline import estimate_noise, residual_vectors
             noise = estimate_noise(residual_vectors(X_BE, X_CT, pose.X_H, pose.X_F))
             pose = ml_fit(X_BE, X_CT, pose.X_H, noise.rotation, noise.translation)
             rows.setdefault("pose-level ML (all images)", []).append(

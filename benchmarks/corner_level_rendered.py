@@ -29,9 +29,9 @@ import cv2
 import numpy as np
 from scipy.stats import chi2
 
-from handeye_drake.apps.calibrate.corners import calibrate_images
-from handeye_drake.apps.calibrate.inputs import image_streams
-from handeye_drake.apps.calibrate.pipeline import calibrate_streams, ml_fit
+from handeye_drake.calibration.corners import calibrate_images
+from handeye_drake.calibration.inputs import image_streams
+from handeye_drake.calibration.pipeline import calibrate_streams, ml_fit
 from handeye_drake.estimation import reprojection as rp
 from handeye_drake.estimation.se3 import inverse, rotation_log
 from handeye_drake.estimation.solvers import calibrate_hand_eye

@@ -14,3 +14,29 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+# The suite must leave the working tree as it found it (no file written outside tmp_path): the
+# state of `git status` before and after, compared when the session ends.
+def _tree_state(root):
+    import subprocess
+    try:
+        out = subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=root,
+                             capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout if out.returncode == 0 else None
+
+
+def pytest_sessionstart(session):
+    session.config._tree_before = _tree_state(session.config.rootpath)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    before = getattr(session.config, "_tree_before", None)
+    after = _tree_state(session.config.rootpath)
+    if before is None or after is None or before == after:
+        return
+    new = sorted(set(after.splitlines()) - set(before.splitlines()))
+    print("\nthe test session changed the working tree:\n  " + "\n  ".join(new[:20]))
+    session.exitstatus = 1

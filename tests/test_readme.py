@@ -30,7 +30,7 @@ def _run(code: str) -> dict:
 def test_readme_has_the_four_python_examples():
     blocks = _python_blocks()
     assert len(blocks) == 4
-    assert "HandEyeTargetFilter" in blocks[0] and "calibrate_streams" in blocks[1]
+    assert "HandEyeTargetFilter" in blocks[0] and "calibrate(" in blocks[1]
     assert "DiagramBuilder" in blocks[2] and "run_scenario" in blocks[3]
 
 
@@ -55,6 +55,9 @@ def test_the_calibrate_example_is_ok_and_right():
     assert result.verdict.status == "OK"
     assert np.linalg.norm(result.X_EC[:3, 3] - truth[:3, 3]) < 4 * np.linalg.norm(
         result.translation_std)
+    images = namespace["from_images"]
+    assert images.verdict.status == "OK" and images.corners is not None
+    assert set(namespace["files"]) >= {"handeye.urdf"}
 
 
 def test_the_drake_calibrator_example_ends_within_its_sigma():

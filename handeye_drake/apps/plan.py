@@ -32,7 +32,7 @@ from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
                                         recording_observability, refine_ml_poses_fixed)
 from ..estimation.planning import plan_next_poses, sample_candidate_poses
 from ..estimation.se3 import inverse, make_transform, quat_wxyz, rotation_from_quat_wxyz
-from ..recorded.align import align_streams
+from ..calibration.align import align_streams
 from ..recorded.formats import FORMATS, read_poses
 from ..vision.camera_model import CameraIntrinsics
 

@@ -850,7 +850,15 @@ def calibrate_section(sizes=CALIBRATE_SIZES, log=print) -> list[dict]:
     formulation stays below ``OPENCV_MAX_PAIRS`` motions."""
     from ..estimation.errors import rotation_error_deg
     from ..recorded.example import TRUE_X_EC
-    from .cli import main as cli_main
+    from .calibrate import add_parser
+
+    # The calibrate command's own parser (not ``cli.main``: the CLI imports this module).
+    parser = argparse.ArgumentParser(prog="handeye-drake")
+    add_parser(parser.add_subparsers(dest="command"))
+
+    def cli_main(argv):
+        args = parser.parse_args(argv)
+        return args.func(args)
 
     try:
         import cv2  # noqa: F401

@@ -4,7 +4,7 @@ The pose-level fit (``ml.refine_ml_poses``) reduces every image to one PnP pose 
 poses. This module fits what the camera measured: every detected corner of every image, through
 the kinematic chain and OpenCV's camera model, with the intrinsics optionally refined jointly.
 
-Model (``mode`` of ``recorded.consistency``, robot-side poses X_R):
+Model (``mode`` of ``estimation.consistency``, robot-side poses X_R):
 
     X_CT,k = X_H⁻¹ · X_R,k⁻¹ · X_F           eye-in-hand: X_H = X_EC, X_R = X_BE, X_F = X_BT
                                              eye-to-hand: X_H = X_BC, X_R = X_EB, X_F = X_ET
@@ -601,6 +601,7 @@ def cross_validate(data: CornerData, fit: CornerFit, folds: int | None = None,
     v = fit.intrinsics
     per_image = np.full(data.num_images, np.nan)
     sq_sum, count = 0.0, 0
+    chi2_sum, dof_sum = 0.0, 0
     for g in groups:
         rest = np.setdiff1d(use, g)
         sub = data.subset(rest)
@@ -615,14 +616,38 @@ def cross_validate(data: CornerData, fit: CornerFit, folds: int | None = None,
             continue
         for k in g:
             sel = (data.image == k) & fit.corner_used
+            if not sel.any():
+                continue
+            one = CornerData(data.X_R[k:k + 1], np.zeros(int(sel.sum()), int),
+                             data.object_points[sel], data.image_points[sel])
+            q, dof = _predictive_chi2(f, one, free_scale)
+            chi2_sum += q
+            dof_sum += dof
             uv = predict(f, data.X_R[k], data.object_points[sel])
             d2 = np.sum((data.image_points[sel] - uv) ** 2, axis=1)
-            per_image[k] = math.sqrt(float(np.mean(d2))) if len(d2) else math.nan
+            per_image[k] = math.sqrt(float(np.mean(d2)))
             sq_sum += float(np.sum(d2))
             count += len(d2)
     method = "leave-one-out" if folds == K else f"{folds}-fold"
     return {"rms_px": math.sqrt(sq_sum / count) if count else math.nan,
-            "image_rms_px": per_image, "method": method, "folds": folds}
+            "image_rms_px": per_image, "method": method, "folds": folds,
+            "chi2_per_dof": chi2_sum / dof_sum if dof_sum else math.nan, "dof": dof_sum}
+
+
+def _predictive_chi2(fit: CornerFit, one: CornerData, free_scale: bool) -> tuple[float, int]:
+    """Whitened squared prediction error of one new image (its corners ``one``) by ``fit``,
+    and its degrees of freedom: the error's covariance is the pixel noise, the image's own
+    pose error (its prior Σ_e) and the fit's own uncertainty, each through its Jacobian."""
+    S_i = _selection(fit.model, fit.intrinsics)
+    st = _State(fit.X_H, fit.X_F, fit.intrinsics, fit.scale, np.zeros((1, 6)))
+    res, J_g, J_e = _linearize(one, st, S_i, free_scale, True, fit.pose_error_frame)
+    n = len(res)
+    Jg = J_g.reshape(2 * n, -1)
+    Je = J_e.reshape(2 * n, 6)
+    C = fit.pixel_sigma ** 2 * np.eye(2 * n) + (Je * fit.pose_sigma ** 2) @ Je.T \
+        + Jg @ fit.covariance_full @ Jg.T
+    r = res.reshape(-1)
+    return float(r @ np.linalg.solve(C, r)), 2 * n
 
 
 #: Largest number of images cross-validated leave-one-out (more: 10-fold).

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .align import PoseInterpolator
+from ..estimation.interpolation import PoseInterpolator
 from .formats import PoseStream, pose_stream
 
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",

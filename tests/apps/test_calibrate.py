@@ -10,11 +10,11 @@ import pytest
 
 import handeye_drake
 from handeye_drake import rotation_error_deg
-from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.calibration import calibrate_streams
 from handeye_drake.apps.cli import main
 from handeye_drake.estimation.se3 import (inverse, make_transform, quat_wxyz, rotation_exp,
                                           rotation_from_rpy)
-from handeye_drake.recorded.align import UnobservableTimeOffset
+from handeye_drake.calibration.align import UnobservableTimeOffset
 from handeye_drake.recorded.example import camera_pose
 from handeye_drake.recorded.formats import pose_stream
 from tests.fixtures import synthetic_streams
@@ -137,7 +137,7 @@ def test_a_biased_online_filter_is_never_reported_as_trustworthy():
 
 
 def pose_stream_pair():
-    from handeye_drake.apps.calibrate.command import file_streams
+    from handeye_drake.calibration.inputs import file_streams
     s = file_streams(ROBOT, CAMERA)
     return s.robot, s.camera
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from handeye_drake import rotation_error_deg
-from handeye_drake.apps.calibrate import bag_image_streams
+from handeye_drake.calibration import bag_image_streams
 from handeye_drake.apps.cli import main
 from handeye_drake.recorded import bags
 from handeye_drake.recorded.example_bag import (CAMERA_FRAME, CAMERA_INFO_TOPIC, COMPRESSED_TOPIC,

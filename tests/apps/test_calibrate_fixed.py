@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from handeye_drake.apps.calibrate import calibrate_streams
-from handeye_drake.apps.calibrate.report import table
+from handeye_drake.calibration import calibrate_streams
+from handeye_drake.calibration.report import table
 from handeye_drake.apps.cli import main
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rpy
 from handeye_drake.recorded.formats import pose_stream

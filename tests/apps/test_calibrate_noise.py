@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from handeye_drake.apps.calibrate import calibrate_streams
-from handeye_drake.apps.calibrate.checks import held_out_test
-from handeye_drake.apps.calibrate.report import to_dict
+from handeye_drake.calibration import calibrate_streams
+from handeye_drake.calibration.checks import held_out_test
+from handeye_drake.calibration.report import to_dict
 from handeye_drake.estimation.se3 import make_transform, rotation_log
 from handeye_drake.recorded.formats import pose_stream
 

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import handeye_drake
-from handeye_drake.apps.calibrate import calibrate_streams
-from handeye_drake.apps.calibrate.inputs import file_streams
-from handeye_drake.apps.calibrate.pipeline import fixed_name, robot_error_covariance
-from handeye_drake.apps.calibrate.report import to_dict
+from handeye_drake.calibration import calibrate_streams
+from handeye_drake.calibration.inputs import file_streams
+from handeye_drake.calibration.pipeline import fixed_name, robot_error_covariance
+from handeye_drake.calibration.report import to_dict
 from handeye_drake.estimation import observability as ob
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_log, rpy
 from handeye_drake.recorded.formats import pose_stream
@@ -250,7 +250,7 @@ def _hac_reference(X_R, X_CT, fit, L):
     """The Newey–West sandwich written out as a double sum over sample pairs."""
     from handeye_drake.estimation.ml import pose_jacobians
     from handeye_drake.estimation.se3 import inverse_tangent_jacobian
-    from handeye_drake.apps.calibrate.pipeline import residual_vectors
+    from handeye_drake.calibration.pipeline import residual_vectors
     sigma = np.concatenate([fit.noise.rotation, fit.noise.translation])
     X_CE = inverse(fit.X_H)
     H = pose_jacobians(np.array([inverse(x) for x in X_R]), X_CE, fit.X_F, fit.noise.rotation,
@@ -271,7 +271,7 @@ def _hac_reference(X_R, X_CT, fit, L):
 
 @pytest.mark.parametrize("rho", [0.0, 0.9])
 def test_correlated_covariance_is_the_newey_west_sandwich(rho):
-    from handeye_drake.apps.calibrate.pipeline import correlated_covariance, ml_fit
+    from handeye_drake.calibration.pipeline import correlated_covariance, ml_fit
     X_BE, X_CT, X_EC = _smooth_recording(rho)
     fit = ml_fit(X_BE, X_CT, X_EC, np.radians(0.1), 0.0005)
     idx = np.arange(len(X_BE))
@@ -302,7 +302,7 @@ def test_split_half_nees_is_chi2_6_on_average_over_seeded_recordings():
     seeded recordings the mean lies in the 99.9 % band of χ²(180) / 30 — both ways (a sum of
     covariances mis-scaled by 2 moves it out)."""
     from scipy.stats import chi2
-    from handeye_drake.apps.calibrate.pipeline import _split_check, ml_fit
+    from handeye_drake.calibration.pipeline import _split_check, ml_fit
     from handeye_drake.vision.camera_model import apply_pose_noise
     nees = []
     for seed in range(30):
@@ -341,7 +341,7 @@ def _rpy_covariance(X, C):
 def test_rpy_sigma_is_the_propagated_covariance(rpy_deg):
     """calibration.json's "rpy_deg" σ: the closed form, and the spread of roll-pitch-yaw over
     rotations drawn from the covariance (an anisotropic one, correlated)."""
-    from handeye_drake.apps.calibrate.report import rpy_std_deg
+    from handeye_drake.calibration.report import rpy_std_deg
     from handeye_drake.estimation.se3 import rotation_from_rpy
     X = make_transform(rotation_from_rpy(np.radians(rpy_deg)), [0.1, 0.2, 0.3])
     A = np.array([[1.0, 0.3, -0.2], [0.0, 2.0, 0.5], [0.0, 0.0, 0.7]]) * np.radians(0.05)
@@ -365,7 +365,7 @@ def test_rpy_sigma_is_the_propagated_covariance(rpy_deg):
 def test_estimate_noise_is_the_dof_corrected_mad_per_axis():
     """Per axis σ_i = 1.4826 · median |r_i| / √((6K − p) / 6K), exactly, on residuals whose
     medians are known; and on Gaussian residuals of known σ per axis, within 2 % both ways."""
-    from handeye_drake.apps.calibrate.pipeline import estimate_noise
+    from handeye_drake.calibration.pipeline import estimate_noise
     K = 9
     med = np.array([1e-3, 2e-3, 5e-4, 3e-4, 7e-4, 1.1e-3])
     # Odd K: the median of |r| is the middle value; signs and the other values are arbitrary.

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import handeye_drake
-from handeye_drake.apps.calibrate.changepoint import find_move
-from handeye_drake.apps.calibrate.command import file_streams
+from handeye_drake.calibration.changepoint import find_move
+from handeye_drake.calibration.inputs import file_streams
 from handeye_drake.estimation.se3 import make_transform, rotation_exp
-from handeye_drake.recorded.align import align_streams
+from handeye_drake.calibration.align import align_streams
 from tests.fixtures import synthetic_streams
 
 DATA = Path(handeye_drake.__file__).parent / "data"

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
 from handeye_drake.recorded import bags
-from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.calibration import calibrate_streams
 from handeye_drake.recorded.example import TRUE_X_EC, X_BT, camera_pose
 from handeye_drake.recorded.example_bag import BagWriter
 from handeye_drake.vision.camera_model import CameraIntrinsics

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from handeye_drake.estimation.se3 import inverse, make_transform, quat_wxyz, rotation_exp
-from handeye_drake.recorded import (align_streams, estimate_time_offset, parse_poses, pose_stream,
-                                    read_poses, robust_hand_eye)
-from handeye_drake.apps.calibrate import calibrate_files
+from handeye_drake.calibration.align import align_streams, estimate_time_offset
+from handeye_drake.estimation.selection import robust_hand_eye
+from handeye_drake.recorded import parse_poses, pose_stream, read_poses
+from handeye_drake.calibration import calibrate_files
 from handeye_drake.apps.cli import main
 from handeye_drake.recorded.example import data_dir
 from handeye_drake.recorded.formats import LineNumbers, read_input, time_unit_hint

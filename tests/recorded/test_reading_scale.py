@@ -10,13 +10,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-import handeye_drake.recorded.align as align
+import handeye_drake.calibration.align as align
 import handeye_drake.recorded.formats as formats
-import handeye_drake.recorded.selection as selection
+import handeye_drake.estimation.selection as selection
 from handeye_drake import rotation_error_deg
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, rotation_from_rpy
-from handeye_drake.recorded import (PoseInterpolator, estimate_time_offset, form_pairs,
-                                    parse_poses, pose_stream, read_poses, robust_hand_eye)
+from handeye_drake.calibration.align import estimate_time_offset
+from handeye_drake.estimation.interpolation import PoseInterpolator
+from handeye_drake.estimation.selection import form_pairs, robust_hand_eye
+from handeye_drake.recorded import parse_poses, pose_stream, read_poses
 from handeye_drake.recorded.example import camera_pose
 
 pytestmark = pytest.mark.filterwarnings("error")

@@ -16,18 +16,12 @@ from handeye_drake.estimation.se3 import (
     make_transform,
     rotation_exp,
 )
-from handeye_drake.recorded import (
-    align_streams,
-    estimate_time_offset,
-    form_pairs,
-    interpolate_poses,
-    parse_poses,
-    pose_stream,
-    read_poses,
-    robust_hand_eye,
-)
+from handeye_drake.calibration.align import align_streams, estimate_time_offset
+from handeye_drake.estimation.interpolation import interpolate_poses
+from handeye_drake.estimation.selection import form_pairs, robust_hand_eye
+from handeye_drake.recorded import parse_poses, pose_stream, read_poses
 from handeye_drake.recorded.example import generate_example
-from handeye_drake.recorded.selection import InconsistentMotions
+from handeye_drake.estimation.selection import InconsistentMotions
 
 DATA = Path(handeye_drake.__file__).parent / "data"
 ROOT = Path(__file__).resolve().parents[2]

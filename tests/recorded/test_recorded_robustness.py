@@ -29,19 +29,14 @@ from handeye_drake import (
     rotation_error_deg,
     solve_ax_xb,
 )
-from handeye_drake.apps.calibrate import calibrate_streams
+from handeye_drake.calibration import calibrate_streams
 from handeye_drake.apps.cli import main
 from handeye_drake.estimation.configs import PaperFilter
 from handeye_drake.estimation.se3 import inverse, make_transform, quat_wxyz, rotation_exp
-from handeye_drake.recorded import (
-    align_streams,
-    estimate_time_offset,
-    interpolate_poses,
-    parse_poses,
-    pose_stream,
-    read_poses,
-    robust_hand_eye,
-)
+from handeye_drake.calibration.align import align_streams, estimate_time_offset
+from handeye_drake.estimation.interpolation import interpolate_poses
+from handeye_drake.estimation.selection import robust_hand_eye
+from handeye_drake.recorded import parse_poses, pose_stream, read_poses
 
 # ------------------------------------------------------------------------------ bad input files
 GOOD_TUM = "0.0 0.1 0.2 0.3 0 0 0 1\n0.1 0.1 0.2 0.3 0 0 0 1\n"

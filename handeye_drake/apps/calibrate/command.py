@@ -18,11 +18,10 @@ from ...estimation.solvers import METHODS
 from ...recorded.formats import FORMATS, MAX_TRANSLATION
 from ..argtypes import positive_float
 from ..outputs import prepare_output_dir
-from .corners import REFINE_CHOICES, calibrate_images
-from .inputs import (DEFAULT_MAX_IMAGES, QUATERNION_ORDERS, bag_image_streams, bag_streams,
-                     file_streams, image_streams)
-from .pipeline import calibrate_streams
-from .report import table, write_json
+from ...calibration.api import DEFAULT_ROBOT_ACCURACY, CalibrationOptions, read_inputs, solve
+from ...calibration.corners import REFINE_CHOICES
+from ...calibration.inputs import DEFAULT_MAX_IMAGES, QUATERNION_ORDERS
+from ...calibration.report import table, write_json
 
 DEFAULT_OUT = "out/calibrate"
 
@@ -39,9 +38,6 @@ def _time_offset_arg(text: str):
     return v
 
 
-#: Robot pose accuracy assumed by default (deg, m): a few tenths of a millimetre is typical of an
-#: industrial arm without kinematic calibration (repeatability is ten times better).
-DEFAULT_ROBOT_ACCURACY = (0.03, 3e-4)
 
 
 def _accuracy_arg(text: str):
@@ -52,7 +48,7 @@ def _accuracy_arg(text: str):
             from None
     if not (deg >= 0 and mm >= 0 and math.isfinite(deg) and math.isfinite(mm)):
         raise argparse.ArgumentTypeError(f"expected two numbers ≥ 0, got {text!r}")
-    return deg, mm / 1000.0
+    return deg, mm
 
 
 def _noise_arg(text: str):
@@ -62,7 +58,7 @@ def _noise_arg(text: str):
         raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 1,10), got {text!r}") from None
     if not (deg > 0 and mm > 0 and math.isfinite(deg) and math.isfinite(mm)):
         raise argparse.ArgumentTypeError(f"expected two positive numbers, got {text!r}")
-    return deg, mm / 1000.0
+    return deg, mm
 
 
 def _max_images_arg(text: str):
@@ -184,7 +180,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                           "slowly varying robot error is invisible in the residuals, so it is "
                           "added to the σ; 0,0 leaves it out")
     chk = p.add_argument_group("verdict")
-    chk.add_argument("--max-noise", type=_noise_arg, default=(1.0, 0.01), metavar="DEG,MM",
+    chk.add_argument("--max-noise", type=_noise_arg, default=(1.0, 10.0), metavar="DEG,MM",
                      help="largest plausible per-axis noise of a camera pose (default 1,10): "
                           "larger residuals FAIL")
     chk.add_argument("--max-hand-eye-distance", type=positive_float, default=None,
@@ -226,6 +222,20 @@ def _scales(args):
     return robot, camera
 
 
+def options_from_args(args) -> CalibrationOptions:
+    """The library's ``CalibrationOptions`` of the parsed arguments (the same defaults)."""
+    return CalibrationOptions(
+        mode=args.mode.replace("-", "_"), method=args.method, time_offset_s=args.time_offset,
+        time_offset_range_s=args.time_offset_range, min_rotation_deg=args.min_rotation,
+        max_pair_angle_deg=args.max_pair_angle, holdout_fraction=args.holdout, seed=args.seed,
+        fixed=args.fix, max_noise_deg=args.max_noise[0], max_noise_mm=args.max_noise[1],
+        max_hand_eye_distance_m=args.max_hand_eye_distance,
+        robot_accuracy_deg=args.robot_accuracy[0],
+        robot_accuracy_mm=args.robot_accuracy[1],
+        refine_intrinsics=args.refine_intrinsics, online=args.online,
+        online_step_deg=args.online_step)
+
+
 def run_calibrate_command(args) -> int:
     """Runs ``calibrate`` from parsed arguments; raises ValueError on bad input."""
     sources = [bool(args.bag), bool(args.images), bool(args.camera)]
@@ -244,46 +254,22 @@ def run_calibrate_command(args) -> int:
     mode = args.mode.replace("-", "_")
     out = prepare_output_dir(args.out, "calibrate", args.force)
     robot_scale, camera_scale = _scales(args)
-    if args.bag and args.image_topic:
-        streams = bag_image_streams(args.bag, args.robot_frames, args.image_topic, args.target,
-                                    args.intrinsics, args.camera_info_topic, args.max_images,
-                                    drawings_dir=out)
-    elif args.bag:
-        streams = bag_streams(args.bag, args.robot_frames, args.camera_topic,
-                              args.camera_frames, args.camera_pose_is_camera_in_target)
-    elif args.images:
-        streams = image_streams(args.images, args.robot, args.target, args.intrinsics,
-                                args.format, robot_scale, args.robot_quaternion_order,
-                                drawings_dir=out)
-    else:
-        streams = file_streams(args.robot, args.camera, args.format,
-                               args.camera_pose_is_camera_in_target, robot_scale, camera_scale,
-                               args.max_translation, args.time_scale,
-                               args.robot_quaternion_order, args.camera_quaternion_order)
-    robot_accuracy = args.robot_accuracy if any(args.robot_accuracy) else None
-    corner_level = bool(streams.detections) and not args.fix
-    settings = dict(
-        mode=mode, method=args.method,
-        time_offset=args.time_offset, time_offset_range=args.time_offset_range,
-        min_rotation_deg=args.min_rotation, max_pair_angle_deg=args.max_pair_angle,
-        holdout_fraction=args.holdout, seed=args.seed, fixed=args.fix,
-        max_noise=args.max_noise, max_hand_eye_distance=args.max_hand_eye_distance,
-        robot_accuracy=robot_accuracy, quaternion_streams=streams.quaternion_streams,
-        camera_resampler=None if corner_level else streams.camera_resampler,
-        online=args.online, online_step_deg=args.online_step)
-    if corner_level:
-        result = calibrate_images(streams, settings, args.refine_intrinsics)
-        intrinsics_used = result.corners.camera_intrinsics(streams.intrinsics) \
-            if result.corners is not None else streams.intrinsics
-    else:
-        result = calibrate_streams(streams.robot, streams.camera, **settings)
-        intrinsics_used = streams.intrinsics
-    result.inputs = streams.inputs
-    if streams.images:
-        result.inputs["images"]["per_image"] = [vars(r) for r in streams.images]
+    streams = read_inputs(
+        args.robot, args.camera, images=args.images, bag=args.bag,
+        robot_frames=args.robot_frames, camera_topic=args.camera_topic,
+        camera_frames=args.camera_frames, image_topic=args.image_topic,
+        camera_info_topic=args.camera_info_topic, target=args.target,
+        intrinsics=args.intrinsics, format=args.format,
+        camera_pose_is_camera_in_target=args.camera_pose_is_camera_in_target,
+        max_images=args.max_images, robot_translation_scale=robot_scale,
+        camera_translation_scale=camera_scale, max_translation=args.max_translation,
+        time_scale=args.time_scale, robot_quaternion_order=args.robot_quaternion_order,
+        camera_quaternion_order=args.camera_quaternion_order, drawings_dir=out)
+    result = solve(streams, options_from_args(args))
+    intrinsics_used = result.intrinsics
     written = [write_json(result, out.path("calibration.json"))]
     if result.online is not None and any(len(o.times) for o in result.online):
-        from .online import plot_online
+        from .plots import plot_online
         written.append(plot_online(result, out.path("online_convergence.png")))
     written += [r.drawing for r in streams.images if r.drawing]
     parent_frame, parent_note = _parent_frame(args, streams, mode)

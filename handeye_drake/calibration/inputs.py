@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...recorded.consistency import rotation_from_swapped_quaternions, with_rotations
-from ...recorded.formats import (MAX_TRANSLATION, PoseStream, infer_format, pose_stream,
+from ..estimation.consistency import rotation_from_swapped_quaternions, with_rotations
+from ..recorded.formats import (MAX_TRANSLATION, PoseStream, infer_format, pose_stream,
                                  read_input, read_poses)
 
 #: Floor (px) of the corner noise behind the uncertainty of self-calibrated intrinsics.
@@ -86,7 +86,7 @@ def bag_streams(path, robot_frames="base_link:tool0", camera_topic=None, camera_
                 camera_in_target: bool = False) -> Streams:
     """Robot (tf chain between the two frames) and camera (pose topic or tf) streams of a ROS 1
     ``.bag``, ROS 2 bag directory, ``.db3`` or ``.mcap``."""
-    from ...recorded.bags import read_bag
+    from ..recorded.bags import read_bag
     frames = _frames(robot_frames, "--robot-frames")
     cam_frames = _frames(camera_frames, "--camera-frames") if camera_frames else None
     if camera_topic is None and cam_frames is None:
@@ -214,7 +214,7 @@ def _file_frames(paths, robot: PoseStream):
 def _bag_frames(path, topic: str, max_images: int | None):
     """Frames of a bag's image topic, streamed (one decoded image in memory at a time); the
     drawings are named by index and header stamp."""
-    from ...recorded.bags import iter_images
+    from ..recorded.bags import iter_images
     with closing(iter_images(path, topic, max_images, what="--image-topic")) as messages:
         for index, m in enumerate(messages):
             reason = m.error or ("" if m.stamp_ns else "header stamp not set (0): the image "
@@ -243,7 +243,7 @@ def _first_size(frames, what: str) -> tuple[int, int]:
 
 
 def _provisional_intrinsics(width: int, height: int):
-    from ...vision.camera_model import CameraIntrinsics
+    from ..vision.camera_model import CameraIntrinsics
     f = float(max(width, height))
     return CameraIntrinsics(alpha_u=f, alpha_v=f, u0=(width - 1) / 2, v0=(height - 1) / 2,
                             width=width, height=height)
@@ -255,7 +255,7 @@ def calibrate_intrinsics(detections, width: int, height: int):
     deviations of [fx, fy, cx, cy, k1, k2, p1, p2, k3])."""
     import cv2
 
-    from ...vision.camera_model import CameraIntrinsics
+    from ..vision.camera_model import CameraIntrinsics
     obj = [d.object_points.astype(np.float32) for d in detections if len(d.ids) >= 6]
     img = [d.image_points.astype(np.float32) for d in detections if len(d.ids) >= 6]
     if len(obj) < 3:
@@ -276,7 +276,7 @@ def _resampler(detections, intrinsics, std):
     how the intrinsics' own uncertainty moves the camera poses (and so the hand-eye result)."""
     import cv2
 
-    from ...vision.detection import _pose
+    from ..vision.detection import _pose
     K0 = np.asarray(intrinsics.K, dtype=float)
     d0 = np.zeros(5)
     d0[:len(intrinsics.distortion)] = np.asarray(intrinsics.distortion)[:5]
@@ -305,7 +305,7 @@ def _resampler(detections, intrinsics, std):
 def _self_calibrated(frames, target, width: int, height: int):
     """(intrinsics, std, note) calibrated from the target seen in the frames of the given size
     (detected with provisional intrinsics; only the points are kept)."""
-    from ...vision.detection import detect_target
+    from ..vision.detection import detect_target
     rough = _provisional_intrinsics(width, height)
     first = [detect_target(f.image, target, rough) for f in frames
              if f.image is not None and f.image.shape[:2] == (height, width)]
@@ -318,7 +318,7 @@ def _self_calibrated(frames, target, width: int, height: int):
 
 
 def _given_intrinsics(spec, width: int, height: int):
-    from ...vision.intrinsics import load_intrinsics
+    from ..vision.intrinsics import load_intrinsics
     if "," in str(spec) and not Path(str(spec)).exists():
         return load_intrinsics(spec, width=width, height=height)
     return load_intrinsics(spec)
@@ -331,7 +331,7 @@ def _detect_frames(frames, target, intrinsics, drawings_dir=None):
     detection drawn. Only the points of each detection are kept, never the image.
 
     Returns (records in frame order, [(record index, TargetDetection)] of the found ones)."""
-    from ...vision.detection import detect_target, draw_detection
+    from ..vision.detection import detect_target, draw_detection
     records, found = [], []
     for f in frames:
         rec = f.record
@@ -363,7 +363,7 @@ def _require_found(records, found, target_spec, what: str):
     if len(missed) > 3:
         listed += f"; … ({len(missed) - 3} more)"
     hint = ""
-    from ...vision.targets import CharucoTarget, format_target, parse_target
+    from ..vision.targets import CharucoTarget, format_target, parse_target
     try:
         target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
     except ValueError:
@@ -391,7 +391,7 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     The images are read from disk as they are needed (twice when the intrinsics are calibrated
     from them), never all held in memory.
     """
-    from ...vision.targets import parse_target
+    from ..vision.targets import parse_target
     target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
     paths = image_paths(image_specs)
     robot_fmt = fmt or infer_format(robot_path)
@@ -449,9 +449,9 @@ def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrins
     Memory: images are streamed, decoded, detected and dropped; at most ``max_images`` (evenly
     spaced over the topic, None: all) are read. Raises ValueError naming the option at fault.
     """
-    from ...recorded.bags import (CAMERA_INFO_TYPE, bag_topics, find_camera_info, read_bag,
+    from ..recorded.bags import (CAMERA_INFO_TYPE, bag_topics, find_camera_info, read_bag,
                                   require_topic)
-    from ...vision.targets import parse_target
+    from ..vision.targets import parse_target
     if max_images is not None and (isinstance(max_images, bool) or not isinstance(
             max_images, (int, np.integer)) or max_images < 3):
         raise ValueError(f"--max-images: expected an integer ≥ 3, got {max_images!r}")

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...estimation.se3 import quat_wxyz, rpy
-from .corners import task_sigmas
-from .pipeline import CalibrationResult, fixed_name, hand_name, tangent_std
+from ..estimation.se3 import quat_wxyz, rpy
+from .naming import fixed_name, hand_name, tangent_std
+from .task_space import task_sigmas
 
 #: Sample line numbers listed in the JSON per category; beyond, a count.
 MAX_LISTED = 200
@@ -87,7 +87,7 @@ def _held_out_dict(result) -> dict | None:
             "definition": "mean whitened residual² per dof, held-out over fit (F-test)"}
 
 
-def to_dict(result: CalibrationResult) -> dict:
+def to_dict(result) -> dict:
     r, a, fit = result, result.aligned, result.fit
     hand, fixed = hand_name(r.mode), fixed_name(r.mode)
     used = r.sample_used
@@ -182,7 +182,7 @@ def _short(values, n: int = 8) -> str:
     return s + (f", … ({len(values) - n} more)" if len(values) > n else "")
 
 
-def table(result: CalibrationResult) -> str:
+def table(result) -> str:
     """The human-readable summary printed by the command."""
     r, a, fit = result, result.aligned, result.fit
     hand, fixed = hand_name(r.mode), fixed_name(r.mode)
@@ -304,7 +304,7 @@ def _strict_json(value):
     return value
 
 
-def write_json(result: CalibrationResult, path) -> Path:
+def write_json(result, path) -> Path:
     doc = _strict_json(to_dict(result))
     Path(path).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return Path(path)

@@ -3,11 +3,11 @@ command's computation), with a verdict that never reports a wrong transform as a
 
 Pipeline (``calibrate_streams``):
 
-1. Time: the robot pose is interpolated at every camera instant (``recorded.align``); the clock
+1. Time: the robot pose is interpolated at every camera instant (``align``); the clock
    offset is estimated from rotation angles (``--time-offset auto``, the default) and, after the
    fit, refined jointly with it (the offset that minimizes the maximum-likelihood cost).
 2. Classical start: motion pairs, outlier rejection (screw angles, residuals) and a classical
-   solution (``recorded.selection``; ``method="auto"`` tries Park and Daniilidis and keeps the
+   solution (``estimation.selection``; ``method="auto"`` tries Park and Daniilidis and keeps the
    one the data fit best, so no single solver's blind spot — Tsai at 180° — decides).
 3. Maximum likelihood: AX = ZB on the raw poses of the inlying samples, the fixed pose (target in
    the base, eye-in-hand; on the flange, eye-to-hand) estimated alongside
@@ -27,7 +27,7 @@ Pipeline (``calibrate_streams``):
    other mode, units, clock offset): when one explains the data far better, the verdict FAILs
    and names it. ``verdict.status`` is OK, WARN or FAIL.
 
-Frames (see ``recorded.consistency``): eye-in-hand gives X_EC (camera in end-effector) and X_BT
+Frames (see ``estimation.consistency``): eye-in-hand gives X_EC (camera in end-effector) and X_BT
 (target in base); eye-to-hand gives X_BC (camera in base) and X_ET (target on the flange).
 Covariances: [δθ; δt] with R = exp([δθ]×) R̂ (rad, about the axes of the frame the pose is
 expressed in) and t = t̂ + δt (m).
@@ -42,20 +42,23 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
-from ...estimation.ml import (pose_jacobians, pose_residual_vectors, pose_whitening,
+from ..estimation.ml import (pose_jacobians, pose_residual_vectors, pose_whitening,
                               refine_ml_poses)
-from ...estimation.observability import (COMPONENTS, ObservabilityReport, UnobservableError,
+from ..estimation.observability import (COMPONENTS, ObservabilityReport, UnobservableError,
                                          _rpy_rate_matrix, analyze_observability, check_fixed,
                                          information_matrix, observability_report, parse_fixed,
                                          recording_observability, refine_ml_poses_fixed)
-from ...estimation.se3 import inverse, inverse_tangent_jacobian, rotation_log, rpy
-from ...estimation.solvers import METHODS
-from ...recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
+from ..estimation.se3 import inverse, inverse_tangent_jacobian, rotation_log, rpy
+from ..estimation.solvers import METHODS
+from .align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
                                align_streams, estimate_time_offset)
-from ...recorded.consistency import (check_mode, fixed_pose_spread, implied_fixed_poses,
+from ..estimation.consistency import (check_mode, fixed_pose_spread, implied_fixed_poses,
                                      inverse_stack, mean_pose, pose_residuals)
-from ...recorded.formats import PoseStream
-from ...recorded.selection import InconsistentMotions, RobustFit, robust_hand_eye
+from ..recorded.formats import PoseStream
+from ..estimation.selection import InconsistentMotions, RobustFit, robust_hand_eye
+from ..recorded.exports import export_texts
+from . import checks, report
+from .naming import DEFAULT_MAX_HAND_EYE_DISTANCE, fixed_name, hand_name, tangent_std
 
 #: Classical solvers tried by ``method="auto"``.
 AUTO_METHODS = ("park", "daniilidis")
@@ -68,21 +71,6 @@ OUTLIER_PROBABILITY = 1.0 - 1e-6
 MIN_SPLIT_SAMPLES = 16
 #: Largest number of samples the time-offset refinement fits (evenly spaced).
 MAX_OFFSET_REFINE_SAMPLES = 400
-
-
-#: Largest plausible hand-eye translation (m) per mode: a camera on the flange is close to it;
-#: a camera in the cell is within a few metres of the robot base.
-DEFAULT_MAX_HAND_EYE_DISTANCE = {"eye_in_hand": 0.5, "eye_to_hand": 5.0}
-
-
-def hand_name(mode: str) -> str:
-    """The hand-eye unknown of the mode: X_EC (eye-in-hand) or X_BC (eye-to-hand)."""
-    return "X_EC" if mode == "eye_in_hand" else "X_BC"
-
-
-def fixed_name(mode: str) -> str:
-    """The pose fixed in the other robot frame: X_BT (eye-in-hand) or X_ET (eye-to-hand)."""
-    return "X_BT" if mode == "eye_in_hand" else "X_ET"
 
 
 #: Normal-distribution consistency constant of the median absolute value: σ = MAD_SCALE ·
@@ -136,7 +124,7 @@ class Noise:
 @dataclass
 class Fit:
     """A maximum-likelihood fit of AX = ZB on a set of samples (robot side, see
-    ``recorded.consistency``): X_H (hand-eye), X_F (fixed pose), their covariances, the noise
+    ``estimation.consistency``): X_H (hand-eye), X_F (fixed pose), their covariances, the noise
     it assumed (``Noise``: per axis of the camera frame, or per sample) and its whitened cost."""
     X_H: np.ndarray
     X_F: np.ndarray
@@ -285,6 +273,7 @@ class CalibrationResult:
     inputs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     corners: object = None          # ``corners.CornerStage`` (image inputs), else None
+    intrinsics: object = None       # ``CameraIntrinsics`` the answer used (image inputs)
     fixed_tests: list = field(default_factory=list)  # ``FixedTest`` per --fix component
 
     @property
@@ -325,6 +314,22 @@ class CalibrationResult:
     @property
     def ok(self) -> bool:
         return self.verdict.status != "FAIL"
+
+    def to_json(self) -> dict:
+        """Everything found, as ``calibration.json`` holds it (``report.to_dict``)."""
+        return report.to_dict(self)
+
+    def export(self, formats="all", parent_frame: str | None = None,
+               child_frame: str = "camera_optical_frame") -> dict:
+        """{file name: text} of the result as robot-description files
+        (``recorded.exports.export_texts``: urdf, xacro, ros2, drake, camera_config, json, tum).
+        ValueError when the verdict is FAIL: a failed calibration is not exported."""
+        if self.verdict.status == "FAIL":
+            raise ValueError("export: the verdict is FAIL (" + "; ".join(
+                r.message for r in self.verdict.reasons[:2]) + ")")
+        return export_texts(self.X_hand, formats, mode=self.mode, parent_frame=parent_frame,
+                            child_frame=child_frame, X_std=self.covariance,
+                            intrinsics=self.intrinsics)
 
 
 def residual_summary(deg: np.ndarray, m: np.ndarray) -> dict:
@@ -605,7 +610,6 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         ValueError: bad arguments or data that cannot be calibrated at all (the message says
             why: too few samples, no rotation, unaligned streams, ...).
     """
-    from . import checks
     mode = check_mode(mode)
     if method != "auto" and method not in METHODS:
         raise ValueError(f"method: expected 'auto' or one of {', '.join(METHODS)}, got "
@@ -953,7 +957,6 @@ def _explain_unsolvable(error: ValueError, robot, camera, X_R, X_CT, reading, fi
     explains the data (``checks``), a move of the target or of the camera during the recording
     (``changepoint``), or the directions the motions leave undetermined (the observability
     analysis, with the ``--fix`` that helps)."""
-    from . import checks
     text = error.args[0] if error.args else str(error)
     if not isinstance(error, InconsistentMotions) and "do not match" not in text \
             and "outliers" not in text:
@@ -1004,12 +1007,6 @@ def _explain_degenerate(error: ValueError, X_R, X_CT, mode, fixed) -> ValueError
     # superseded by the analysis of the pose fit, which also uses the target's fixed pose.
     head = text.split("; the hand-eye rotation about that axis")[0]
     return ValueError(f"{head}; " + "; ".join(report.messages))
-
-
-def tangent_std(covariance) -> tuple[np.ndarray, np.ndarray]:
-    """(rotation std (deg), translation std (m)) per axis of a 6×6 error covariance."""
-    d = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-    return np.degrees(d[:3]), d[3:]
 
 
 __all__ = ["CalibrationResult", "Fit", "Noise", "SplitCheck", "calibrate_streams",

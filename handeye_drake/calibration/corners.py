@@ -16,13 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, CornerData,
+from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, CornerData,
                                         CornerFit, cross_validate, fit_corners,
-                                        intrinsics_matrix, intrinsics_vector, point_sigma,
+                                        intrinsics_matrix, intrinsics_vector,
                                         select_intrinsics_model)
-from ...estimation.se3 import rotation_log
+from ..estimation.se3 import rotation_log
 from .checks import Reason, Verdict
-from .pipeline import hand_name, robot_error_covariance
+from .pipeline import robot_error_covariance
 
 REFINE_CHOICES = INTRINSICS_MODELS + ("auto",)
 #: A target scale this many σ from 1 (and more than ``SCALE_MIN_ERROR`` off) FAILs the verdict.
@@ -36,8 +36,6 @@ MAX_PIXEL_SIGMA = 3.0
 #: Fraction of images rejected by the corner-level fit: WARN beyond the first, FAIL beyond the
 #: second.
 IMAGE_OUTLIER_FRACTIONS = (0.1, 0.3)
-#: Distance (m) in front of the camera of the point whose σ is reported.
-POINT_DISTANCE = 0.5
 
 
 @dataclass
@@ -55,6 +53,8 @@ class CornerStage:
     pose_level_X_H: np.ndarray
     image_lines: list
     corner_image: np.ndarray = None      # (N,) image of each corner
+    #: Factor on the covariances from the left-out images' prediction errors (≥ 1).
+    variance_factor: float = 1.0
     reasons: list = field(default_factory=list)
     notes: list = field(default_factory=list)
 
@@ -80,7 +80,9 @@ class CornerStage:
                                      "rotation_deg": np.degrees(f.pose_sigma[:3]).tolist(),
                                      "translation_m": f.pose_sigma[3:].tolist()},
                 "cross_validation": {"method": self.cv["method"],
-                                     "rms_px": self.cv["rms_px"]},
+                                     "rms_px": self.cv["rms_px"],
+                                     "chi2_per_dof": self.cv.get("chi2_per_dof"),
+                                     "covariance_factor": self.variance_factor},
                 "models": self.models, "scale": self.scale,
                 "per_image": [{"line": int(line), "used": bool(u), "rms_px": float(rms),
                                "predicted_rms_px": None if not np.isfinite(p) else float(p),
@@ -94,7 +96,7 @@ class CornerStage:
     def camera_intrinsics(self, like):
         """The intrinsics the answer was fitted with, as a ``CameraIntrinsics`` of ``like``'s
         image size."""
-        from ...vision.camera_model import CameraIntrinsics
+        from ..vision.camera_model import CameraIntrinsics
         K, dist = intrinsics_matrix(self.fit.intrinsics)
         return CameraIntrinsics.from_matrix(K, like.width, like.height, tuple(dist))
 
@@ -117,7 +119,10 @@ class CornerStage:
         out.append(f"pixels: RMS {f.rms_px:.3f} px over the corners (noise {f.pixel_sigma:.3f} px "
                    f"per coordinate; per-image pose error {np.degrees(np.linalg.norm(f.pose_sigma[:3])):.3g}° / "
                    f"{1000 * np.linalg.norm(f.pose_sigma[3:]):.3g} mm about the {f.pose_error_frame}); "
-                   f"{self.cv['method']} prediction of left-out images {self.cv['rms_px']:.3f} px")
+                   f"{self.cv['method']} prediction of left-out images {self.cv['rms_px']:.3f} px "
+                   f"(χ²/dof {self.cv.get('chi2_per_dof', math.nan):.2f}"
+                   + (f": σ widened ×{math.sqrt(self.variance_factor):.2f})"
+                      if self.variance_factor > 1 else ")"))
         row = ", ".join(f"{m} {o['cv_rms_px']:.3f}" for m, o in self.models.items()
                         if o.get("cv_rms_px") is not None)
         if row:
@@ -215,8 +220,18 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         why = "--refine-intrinsics " + refine
         if intrinsics_source != "given" and chosen == "none":
             why += " (intrinsics calibrated from the same images: their uncertainty is not in σ)"
+    # The images left out must be predicted as well as the noise model says (whitened by the
+    # predictive covariance of a new image); when they are worse, every σ is widened by the
+    # factor they show (an a-posteriori variance factor, never a narrowing).
+    factor = cv.get("chi2_per_dof", math.nan)
+    inflation = float(factor) if np.isfinite(factor) and factor > 1.0 else 1.0
+    if inflation > 1.0:
+        fit.covariance = fit.covariance * inflation
+        fit.fixed_covariance = fit.fixed_covariance * inflation
+        fit.intrinsics_covariance = fit.intrinsics_covariance * inflation
+        fit.covariance_full = fit.covariance_full * inflation
     stage = CornerStage(fit, refine, chosen, why, models, cv, {}, v0, intrinsics_source,
-                        X_H0.copy(), lines, data.image)
+                        X_H0.copy(), lines, data.image, inflation)
     _scale_check(stage, data, kwargs)
     if intrinsics_source == "given":
         _intrinsics_check(stage, data, kwargs, tried if refine == "auto" else None)
@@ -279,7 +294,7 @@ def _search_scale(streams, settings):
     pose fit leaves the smallest translation residuals, when one gives an answer; else None."""
     import dataclasses
 
-    from ...recorded.consistency import with_scaled_translations
+    from ..estimation.consistency import with_scaled_translations
     from .checks import _quick_fit
     from .pipeline import calibrate_streams
     mode = settings.get("mode", "eye_in_hand")
@@ -331,6 +346,7 @@ def _scale_check(stage: CornerStage, data, kwargs) -> None:
     except ValueError as e:
         stage.scale = {"factor": None, "std": None, "error": str(e)}
         return
+    g.scale_std *= math.sqrt(stage.variance_factor)
     z = (g.scale - 1.0) / max(g.scale_std, 1e-12)
     significant = abs(z) > SCALE_SIGMAS and abs(g.scale - 1.0) > SCALE_MIN_ERROR
     explained_by = ""
@@ -466,24 +482,5 @@ def _apply(result, stage: CornerStage, robot_accuracy) -> None:
     result.corners = stage
 
 
-def task_sigmas(mode: str, X_H, covariance, X_R=None) -> dict:
-    """σ (m, RMS radius) of points a user acts on, from the hand-eye covariance: a point
-    ``POINT_DISTANCE`` in front of the camera, and the tool-centre point (the flange origin; for
-    eye-to-hand at the mean flange position of the robot-side poses ``X_R``) as located through
-    the result."""
-    X_H = np.asarray(X_H, float)
-    p_front = X_H[:3, :3] @ np.array([0.0, 0.0, POINT_DISTANCE])
-    if mode == "eye_in_hand":
-        p_tcp = np.zeros(3)
-    else:
-        p_tcp = np.zeros(3) if X_R is None else np.mean(
-            np.linalg.inv(np.asarray(X_R, float))[:, :3, 3], axis=0)
-    return {"point_in_front_m": point_sigma(covariance, p_front),
-            "point_in_front_distance_m": POINT_DISTANCE,
-            "tool_centre_point_m": point_sigma(covariance, X_H[:3, 3] - p_tcp),
-            "definition": "RMS radius (√trace of the 3×3 covariance) of the point's position "
-                          "error through the calibrated transform"}
-
-
 __all__ = ["CornerStage", "REFINE_CHOICES", "calibrate_images", "corner_data",
-           "refine_with_corners", "task_sigmas"]
+           "refine_with_corners"]

@@ -47,10 +47,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..estimation.se3 import inverse
-from ..estimation.solvers import METHODS, solve_ax_xb
-from ..estimation.validation import MAX_MAGNITUDE
-from .formats import invert_poses
+from .se3 import inverse
+from .solvers import METHODS, solve_ax_xb
+from .validation import MAX_MAGNITUDE
+from .consistency import inverse_stack
+
+
+def invert_poses(X) -> np.ndarray:
+    """Inverses of a stack of rigid transforms (N, 4, 4) (uses Rᵀ: rigid input only); huge
+    translations give inf, refused later."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return inverse_stack(np.asarray(X, dtype=float).reshape(-1, 4, 4))
 
 MAX_WIDE_SAMPLES = 1500
 #: Largest number of consecutive pairs formed (see the module docstring).

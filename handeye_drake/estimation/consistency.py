@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..estimation.se3 import inverse
+from .se3 import inverse
 
 MODES = ("eye_in_hand", "eye_to_hand")
 

@@ -32,13 +32,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import f as f_distribution
 
-from ...estimation.solvers import calibrate_hand_eye
-from ...recorded.align import align_streams, estimate_time_offset
-from ...recorded.consistency import (implied_fixed_poses, mean_pose, pose_residuals,
+from ..estimation.solvers import calibrate_hand_eye
+from .align import align_streams, estimate_time_offset
+from ..estimation.consistency import (implied_fixed_poses, mean_pose, pose_residuals,
                                      rotation_from_swapped_quaternions, with_rotations,
                                      with_scaled_translations)
-from ...recorded.formats import PoseStream
-from .pipeline import DEFAULT_MAX_HAND_EYE_DISTANCE, hand_name
+from ..recorded.formats import PoseStream
+from .naming import DEFAULT_MAX_HAND_EYE_DISTANCE, hand_name
 
 #: Samples used by the quick fit of each alternative (evenly spaced over the recording).
 QUICK_SAMPLES = 40

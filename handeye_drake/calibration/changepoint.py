@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...estimation.se3 import rotation_angle
-from ...estimation.solvers import calibrate_hand_eye
-from ...recorded.consistency import implied_fixed_poses, mean_pose, pose_residuals
+from ..estimation.se3 import rotation_angle
+from ..estimation.solvers import calibrate_hand_eye
+from ..estimation.consistency import implied_fixed_poses, mean_pose, pose_residuals
 
 #: Fewest samples on each side of a move for each part to be fitted.
 MIN_PART = 8

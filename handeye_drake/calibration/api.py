@@ -1,0 +1,199 @@
+"""The calibration of a real cell as one call: ``calibrate(robot, camera | images | bag, options)``
+→ ``CalibrationResult`` — what ``handeye-drake calibrate`` does, with the same defaults.
+
+Stages, in the order the data flows (each a function of this package, testable alone):
+read (``inputs``) → align in time (``align``) → select motion pairs and start (``estimation.
+selection``) → fit (``pipeline``: maximum likelihood on the poses; ``corners``: on the pixels, for
+image inputs) → check (``checks``, ``changepoint``) → verdict; ``report`` turns the result into
+text and JSON, ``recorded.exports`` into robot-description files.
+
+Frames: the robot poses are X_BE (end-effector E in base B), the camera poses X_CT (target T in
+camera C). Eye-in-hand gives X_EC and X_BT; eye-to-hand gives X_BC and X_ET. Covariances are of
+[δθ (rad); δt (m)] with R = exp(δθ) R̂, t = t̂ + δt.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from .corners import REFINE_CHOICES, calibrate_images
+from .inputs import (DEFAULT_MAX_IMAGES, Streams, bag_image_streams, bag_streams, file_streams,
+                     image_streams)
+from .pipeline import CalibrationResult, calibrate_streams
+from ..recorded.formats import MAX_TRANSLATION
+
+#: The robot's pose accuracy assumed unless told (an uncalibrated industrial arm).
+DEFAULT_ROBOT_ACCURACY = (0.03, 0.3)          # deg, mm
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of a calibration; the defaults are the command line's. Units are in the names.
+
+    Attributes:
+        mode: "eye_in_hand" (camera on the flange: X_EC) or "eye_to_hand" (camera fixed in the
+            cell, target on the flange: X_BC).
+        method: classical solver of the start ("auto": Park and Daniilidis, the better).
+        time_offset_s: camera stamp − robot time (s), "auto", or None (auto when both streams
+            have timestamps).
+        time_offset_range_s: ± search range of the offset.
+        min_rotation_deg, max_pair_angle_deg: motion-pair selection of the start.
+        holdout_fraction: share of the pose-level samples held out to check the fit (never out
+            of the answer of image inputs, which is the corner-level fit of every image).
+        seed: seeds the hold-out split and the split-half check.
+        fixed: hand-eye components held at known values ("tz=0.068", {"tz": 0.068}); metres and
+            degrees (``tx``, ``ty``, ``tz``, ``roll_deg``, ``pitch_deg``, ``yaw_deg``).
+        max_noise_deg, max_noise_mm: largest plausible per-axis noise of a camera pose.
+        max_hand_eye_distance_m: largest plausible hand-eye translation (None: 0.5 m eye-in-hand,
+            5 m eye-to-hand).
+        robot_accuracy_deg, robot_accuracy_mm: the robot's pose accuracy added to the σ (0, 0:
+            left out).
+        refine_intrinsics: image inputs: "none", "focal", "pinhole", "k1k2", "full" or "auto".
+        online, online_step_deg: also replay the recording through the on-line filters.
+    """
+    mode: str = "eye_in_hand"
+    method: str = "auto"
+    time_offset_s: float | str | None = None
+    time_offset_range_s: float = 0.5
+    min_rotation_deg: float = 5.0
+    max_pair_angle_deg: float = 90.0
+    holdout_fraction: float = 0.2
+    seed: int = 0
+    fixed: object = None
+    max_noise_deg: float = 1.0
+    max_noise_mm: float = 10.0
+    max_hand_eye_distance_m: float | None = None
+    robot_accuracy_deg: float = DEFAULT_ROBOT_ACCURACY[0]
+    robot_accuracy_mm: float = DEFAULT_ROBOT_ACCURACY[1]
+    refine_intrinsics: str = "auto"
+    online: bool = False
+    online_step_deg: float = 10.0
+
+    def __post_init__(self):
+        mode = str(self.mode).replace("-", "_")
+        if mode not in ("eye_in_hand", "eye_to_hand"):
+            raise ValueError(f"mode: expected 'eye_in_hand' or 'eye_to_hand', got {self.mode!r}")
+        object.__setattr__(self, "mode", mode)
+        if self.refine_intrinsics not in REFINE_CHOICES:
+            raise ValueError(f"refine_intrinsics: expected one of {', '.join(REFINE_CHOICES)}, "
+                             f"got {self.refine_intrinsics!r}")
+        for name in ("robot_accuracy_deg", "robot_accuracy_mm", "max_noise_deg",
+                     "max_noise_mm"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+                raise ValueError(f"{name}: expected a number ≥ 0, got {v!r}")
+
+    @property
+    def robot_accuracy(self):
+        """(deg, m), or None when left out."""
+        if self.robot_accuracy_deg == 0 and self.robot_accuracy_mm == 0:
+            return None
+        return (float(self.robot_accuracy_deg), float(self.robot_accuracy_mm) / 1000.0)
+
+    def stream_settings(self, streams: Streams, corner_level: bool) -> dict:
+        """Keyword arguments of ``pipeline.calibrate_streams`` for these inputs."""
+        return dict(
+            mode=self.mode, method=self.method, time_offset=self.time_offset_s,
+            time_offset_range=self.time_offset_range_s, min_rotation_deg=self.min_rotation_deg,
+            max_pair_angle_deg=self.max_pair_angle_deg, holdout_fraction=self.holdout_fraction,
+            seed=self.seed, fixed=self.fixed,
+            max_noise=(float(self.max_noise_deg), float(self.max_noise_mm) / 1000.0),
+            max_hand_eye_distance=self.max_hand_eye_distance_m,
+            robot_accuracy=self.robot_accuracy, quaternion_streams=streams.quaternion_streams,
+            camera_resampler=None if corner_level else streams.camera_resampler,
+            online=self.online, online_step_deg=self.online_step_deg)
+
+
+def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()
+          ) -> CalibrationResult:
+    """The stages after reading, on ``Streams`` (``inputs``' readers make them): the pose-level
+    fit, and for image inputs the corner-level fit that answers (except with held components,
+    which the corner-level fit does not take yet)."""
+    corner_level = bool(streams.detections) and not options.fixed
+    settings = options.stream_settings(streams, corner_level)
+    if corner_level:
+        result = calibrate_images(streams, settings, options.refine_intrinsics)
+        intrinsics = result.corners.camera_intrinsics(streams.intrinsics) \
+            if result.corners is not None else streams.intrinsics
+    else:
+        result = calibrate_streams(streams.robot, streams.camera, **settings)
+        intrinsics = streams.intrinsics
+    result.inputs = streams.inputs
+    if streams.images:
+        result.inputs["images"]["per_image"] = [dataclasses.asdict(r) for r in streams.images]
+    result.intrinsics = intrinsics
+    return result
+
+
+def read_inputs(robot=None, camera=None, *, images=None, bag=None,
+                robot_frames: str = "base_link:tool0", camera_topic=None, camera_frames=None,
+                image_topic=None, camera_info_topic=None, target=None, intrinsics=None,
+                format: str | None = None, camera_pose_is_camera_in_target: bool = False,
+                max_images: int | None = DEFAULT_MAX_IMAGES, robot_translation_scale: float = 1.0,
+                camera_translation_scale: float = 1.0, max_translation: float | None = None,
+                time_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
+                camera_quaternion_order: str = "xyzw", drawings_dir=None) -> Streams:
+    """``Streams`` of one of: ``robot`` and ``camera`` pose files; ``images`` of a ``target``
+    with the ``robot`` pose file; a ``bag`` with ``robot_frames`` and ``camera_topic``,
+    ``camera_frames`` or ``image_topic`` (with ``target``). The other arguments are the reading
+    options of the command line (``--format``, ``--robot-translation-scale``, …; None
+    ``max_translation``: the readers' default). ValueError naming the argument."""
+    given = [camera is not None, images is not None, bag is not None]
+    if sum(given) != 1:
+        raise ValueError("inputs: give one of camera (with robot), images (with robot and "
+                         "target) or bag")
+    if (camera is not None or images is not None) and robot is None:
+        raise ValueError("robot: the robot poses (X_BE) are needed with "
+                         + ("camera" if camera is not None else "images"))
+    if (images is not None or image_topic) and not target:
+        raise ValueError("target: the calibration target is needed with images (e.g. "
+                         "chessboard:9x6:0.0236)")
+    if bag is not None and image_topic:
+        return bag_image_streams(bag, robot_frames, image_topic, target, intrinsics,
+                                 camera_info_topic, max_images, drawings_dir=drawings_dir)
+    if bag is not None:
+        return bag_streams(bag, robot_frames, camera_topic, camera_frames,
+                           camera_pose_is_camera_in_target)
+    if images is not None:
+        return image_streams(images, robot, target, intrinsics, format, robot_translation_scale,
+                             robot_quaternion_order, drawings_dir=drawings_dir)
+    return file_streams(robot, camera, format, camera_pose_is_camera_in_target,
+                        robot_translation_scale, camera_translation_scale,
+                        MAX_TRANSLATION if max_translation is None else max_translation,
+                        time_scale, robot_quaternion_order, camera_quaternion_order)
+
+
+def calibrate(robot=None, camera=None, *, images=None, bag=None,
+              options: CalibrationOptions = CalibrationOptions(), **reading) -> CalibrationResult:
+    """Calibrates the hand-eye transform from recorded data: ``read_inputs`` (its keyword
+    arguments in ``reading``: ``target``, ``intrinsics``, ``robot_frames``, ``image_topic``, …),
+    then ``solve``. The command line ``handeye-drake calibrate`` is this call with its
+    arguments; the same files give the same result both ways.
+
+    Returns a ``CalibrationResult``: ``X_hand`` (X_EC or X_BC), ``X_fixed``, ``covariance``,
+    ``verdict`` (OK / WARN / FAIL with reasons), ``observability``, per-sample residuals,
+    ``corners`` (image inputs: the intrinsics used, the pixel-level checks), ``to_json()``,
+    ``export(formats)``."""
+    if not isinstance(options, CalibrationOptions):
+        raise ValueError(f"options: expected a CalibrationOptions, got "
+                         f"{type(options).__name__}")
+    streams = read_inputs(robot, camera, images=images, bag=bag, **reading)
+    return solve(streams, options)
+
+
+def calibrate_files(robot_path, camera_path, fmt=None, camera_in_target: bool = False,
+                    translation_scale: float = 1.0, **kwargs) -> CalibrationResult:
+    """``pipeline.calibrate_streams`` on two pose files (``inputs.file_streams`` reads them;
+    extra keyword arguments go to ``calibrate_streams``, with its defaults — ``calibrate`` has
+    the command line's)."""
+    s = file_streams(robot_path, camera_path, fmt, camera_in_target, translation_scale,
+                     translation_scale)
+    result = calibrate_streams(s.robot, s.camera, quaternion_streams=s.quaternion_streams,
+                               **kwargs)
+    result.inputs = s.inputs
+    return result
+
+
+__all__ = ["CalibrationOptions", "DEFAULT_ROBOT_ACCURACY", "calibrate", "calibrate_files",
+           "read_inputs", "solve"]
