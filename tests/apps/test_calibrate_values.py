@@ -387,3 +387,46 @@ def test_estimate_noise_is_the_dof_corrected_mad_per_axis():
     q = np.sum((g / (2 * sigma)) ** 2, axis=1)
     assert n.scale == pytest.approx(math.sqrt(np.median(q) / chi2.median(6) / dof), rel=1e-12)
     assert n.scale == pytest.approx(0.5, rel=0.02)
+
+
+# --------------------------------------------------------------- eye-to-hand, clock offset
+@pytest.mark.parametrize("offset", [0.037, -0.021])
+def test_eye_to_hand_with_a_clock_offset(offset):
+    """Eye-to-hand with timestamps (the other test gives --time-offset 0): the offset is found
+    with its sign and the camera in the base within its σ."""
+    from handeye_drake.recorded.example import camera_pose
+    rng = np.random.default_rng(8)
+    X_BC = _recording_truth("eye_to_hand")
+    X_ET = _fixed_truth("eye_to_hand")
+    t_r = np.arange(601) / 50.0
+    t_c = 0.3 + np.arange(170) / 15.0
+    flange = lambda t: camera_pose(t) @ make_transform(rotation_exp([0.2, -0.1, 0.3]),  # noqa
+                                                       [0.0, 0.0, -0.1])
+    X_CT = [make_transform(rotation_exp(np.radians(0.05) * rng.normal(size=3)),
+                           0.0003 * rng.normal(size=3)) @ inverse(X_BC) @ flange(t) @ X_ET
+            for t in t_c]
+    robot = pose_stream([flange(t) for t in t_r], t_r, "robot")
+    camera = pose_stream(X_CT, t_c + offset, "camera")
+    r = calibrate_streams(robot, camera, mode="eye_to_hand")
+    assert r.verdict.status in ("OK", "WARN"), r.verdict.reasons
+    # The coarse estimate (~0.9 ms off here) refined with the fit to ~0.05 ms.
+    assert r.time_offset.offset == pytest.approx(offset, abs=0.003)
+    assert r.time_offset_refined["refined"]
+    assert r.aligned.time_offset == pytest.approx(offset, abs=3e-4)
+    assert abs(r.aligned.time_offset - offset) < 0.5 * abs(r.time_offset.offset - offset)
+    err = np.concatenate([rotation_log(X_BC[:3, :3] @ r.X_BC[:3, :3].T),
+                          X_BC[:3, 3] - r.X_BC[:3, 3]])
+    std = np.sqrt(np.diag(r.covariance))
+    assert np.all(np.abs(err) < 4 * std), (err, std)
+
+
+@pytest.mark.parametrize("offset", [0.05, -0.03])
+def test_the_refined_clock_offset_is_closer_than_the_coarse_one(offset):
+    """Eye-in-hand: the coarse estimate is ~0.35 ms off; the joint refinement with the fit
+    brings it to ~0.16 ms (a refinement applied with the wrong sign ends ~0.85 ms off)."""
+    from tests.fixtures import synthetic_streams
+    robot, camera, X_EC = synthetic_streams(offset)
+    r = calibrate_streams(robot, camera)
+    assert r.time_offset_refined["refined"]
+    assert r.aligned.time_offset == pytest.approx(offset, abs=3e-4)
+    assert abs(r.aligned.time_offset - offset) < 0.7 * abs(r.time_offset.offset - offset)

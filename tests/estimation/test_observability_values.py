@@ -97,3 +97,34 @@ def test_hand_eye_std_is_the_report_sigma_with_and_without_held_components():
     np.testing.assert_allclose(rot, np.degrees(np.sqrt(np.diag(cond)[:3])), rtol=1e-6)
     np.testing.assert_allclose(tra[:2], np.sqrt(np.diag(cond)[3:]), rtol=1e-6)
     assert tra[2] == 0.0
+
+
+def test_weak_direction_message_gives_the_ml_sigma_and_the_perpendicular_bound():
+    """Nearly parallel rotation axes (2° tilt): "translation along E z is weakly determined
+    (σ X mm vs ≤ Y mm along the perpendicular axes)" — X the σ of the error along the weak
+    direction, Y the largest σ across it, both from the ML covariance."""
+    import re
+    from tests.estimation.test_observability import scara_poses
+    X_HC, X_FT = CASES["eye_in_hand"]
+    X_BE = scara_poses(np.random.default_rng(5), 20, tilt_deg=2.0)
+    cov = _ml_covariance("eye_in_hand", X_BE, X_HC, X_FT)
+    rep = ob.observability_report(X_BE, inverse(X_HC), X_FT, SR, ST)
+    (d,) = rep.weak
+    assert d.kind == "translation" and d.name == "translation along E z"
+    msg = next(m for m in rep.messages if m.startswith("translation along E z is weakly"))
+    x_mm, y_mm = (float(v) for v in re.search(r"σ ([0-9.]+) mm vs ≤ ([0-9.]+) mm along the "
+                                              r"perpendicular axes", msg).groups())
+    # X: the std of the error component along the direction, given the rest (1/√λ).
+    v = np.concatenate([np.zeros(3), d.translation_axis])
+    L = rep.length_scale
+    D_inv = np.diag([1, 1, 1, 1 / L, 1 / L, 1 / L])
+    lam = 1.0 / (d.vector @ D_inv @ cov @ D_inv @ d.vector)
+    assert x_mm == pytest.approx(1000 * np.linalg.norm(d.vector[3:]) * L / math.sqrt(lam),
+                                 rel=6e-3)  # printed to 3 digits
+    assert x_mm > 5 * y_mm
+    # Y: the largest σ of translations perpendicular to the weak axis (marginal, from Σ_tt).
+    a = d.translation_axis
+    P = np.eye(3) - np.outer(a, a)
+    assert y_mm == pytest.approx(1000 * math.sqrt(np.linalg.eigvalsh(P @ cov[3:, 3:] @ P)[-1]),
+                                 rel=6e-3)  # printed to 3 digits
+    assert abs(v @ d.vector) > 0.99
