@@ -31,7 +31,7 @@ from scipy.stats import chi2
 
 from handeye_drake.calibration.corners import calibrate_images
 from handeye_drake.calibration.inputs import image_streams
-from handeye_drake.calibration.pipeline import calibrate_streams, ml_fit
+from handeye_drake.calibration.pipeline import calibrate_streams, ml_fit, robot_error_covariance
 from handeye_drake.estimation import reprojection as rp
 from handeye_drake.estimation.se3 import inverse, rotation_log
 from handeye_drake.estimation.solvers import calibrate_hand_eye
@@ -89,6 +89,11 @@ def run_set(folder: Path, truth: dict, spec: str, rows: dict, chosen: Counter) -
     result = calibrate_images(streams, SETTINGS, "auto")
     rows.setdefault("corner-level ML (calibrate now)", []).append(
         (*errors(result.X_hand, X_EC), nees(result.X_hand, X_EC, result.covariance)))
+    # The command line's default σ also holds the robot's accuracy (0.03° / 0.3 mm): the
+    # rendered arm has none, so this NEES shows how conservative the default is.
+    with_robot = result.covariance + robot_error_covariance(result.X_hand, (0.03, 3e-4))
+    rows.setdefault("  same, σ with --robot-accuracy", []).append(
+        (*errors(result.X_hand, X_EC), nees(result.X_hand, X_EC, with_robot)))
     chosen[result.corners.model] += 1
 
 
