@@ -603,7 +603,7 @@ def add_parser(benchmark_subparsers) -> argparse.ArgumentParser:
     acc.add_argument("--closed-loop-runs", type=int, default=4, metavar="N",
                      help="closed-loop simulations (seeds S, S+1, …; default 4)")
     acc.add_argument("--seed", type=int, default=0, metavar="S", help="base seed (default 0)")
-    add_executor_arguments(acc, default_workers=2)
+    add_executor_arguments(acc)
     acc.add_argument("--noise-levels", type=float, nargs="+", default=list(PAPER_NOISE_LEVELS),
                      help="rotation-coefficient σ of the small-motion settings "
                      "(default 0.01 0.05 0.1)")

@@ -20,15 +20,33 @@ import argparse
 import sys
 
 from . import accuracy, calibrate, plan, reproduce, simulate, speed, sweep, target
+from .outputs import remove_empty_created
 
 APPLICATIONS = (simulate, calibrate, target, plan, reproduce, sweep)
 #: Sub-commands of ``handeye-drake benchmark``.
 BENCHMARKS = (accuracy, speed)
 
 
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Every option's help ends with its default, unless the text already states it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if (action.option_strings and "default" not in text.lower()
+                and not any(action.default is v for v in (None, False, argparse.SUPPRESS))
+                and not isinstance(action, (argparse._StoreTrueAction, argparse._VersionAction,
+                                            argparse._HelpAction))):
+            text += " (default: %(default)s)"
+        return text
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage errors as one line (``handeye-drake calibrate: error: ...``, exit 2); ``--help``
-    still prints the usage."""
+    still prints the usage, with every default."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _DefaultsFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
@@ -38,6 +56,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="handeye-drake",
         description="On-line hand-eye calibration embedded in visual servoing (Drake).")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     for app in APPLICATIONS:
         app.add_parser(sub)
@@ -50,6 +69,14 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("handeye_drake")
+    except PackageNotFoundError:  # a source tree that was not installed
+        return "unknown (not installed)"
+
+
 def main(argv=None) -> int:
     try:
         args = make_parser().parse_args(argv)
@@ -59,10 +86,12 @@ def main(argv=None) -> int:
         return args.func(args)
     except ValueError as e:
         # One line, whatever the message's layout: the command never prints a traceback for bad
-        # input.
+        # input; the output folders it created and left empty go with it.
+        remove_empty_created()
         print("handeye-drake: error: " + " ".join(str(e).split()), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        remove_empty_created()
         print("handeye-drake: interrupted", file=sys.stderr)
         return 130
 

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 MANIFEST = ".handeye-drake-output.json"
+#: Directories this process created for its outputs, outermost first (``remove_empty_created``).
+_CREATED: list = []
 
 
 def _manifest(path: Path) -> dict | None:
@@ -141,14 +143,28 @@ def prepare_output_dir(out, command: str, force: bool = False) -> OutputDir:
             raise ValueError(f"--out {out}: the directory is not empty and is {owner}; choose "
                              "an empty or new directory, or pass --force (files the tool did not "
                              "write are never overwritten or deleted)")
+    missing = [p for p in [root, *root.parents] if not p.exists()]
     try:
         root.mkdir(parents=True, exist_ok=True)
+        _CREATED.extend(reversed(missing))
         probe = root / ".handeye-drake-write-test"
         probe.write_text("")
         probe.unlink()
     except OSError as e:
         raise ValueError(f"--out {out}: cannot write there ({e.strerror or e})") from None
     return OutputDir(root=root, command=command, force=force, earlier=earlier, hashes=hashes)
+
+
+def remove_empty_created() -> None:
+    """Removes the output directories this process created that are still empty (a command that
+    failed before writing anything leaves no folder behind). Only empty directories: never a
+    file."""
+    for d in reversed(_CREATED):
+        try:
+            d.rmdir()
+        except OSError:
+            pass
+    _CREATED.clear()
 
 
 def check_output_file(path, option: str, force: bool = False) -> Path:
