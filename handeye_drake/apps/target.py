@@ -12,7 +12,9 @@ import argparse
 from pathlib import Path
 
 from .argtypes import non_negative_float, positive_float
-from .outputs import check_output_file
+from .outputs import prepare_output_dir
+
+DEFAULT_OUT = "out/target"
 
 
 #: Paper sizes (mm) checked for the printed page, smallest first.
@@ -30,13 +32,15 @@ def run_target(args) -> int:
     from ..vision.targets import (object_points_description, parse_target, target_caption,
                                   write_printable)
     target = parse_target(args.spec)
-    png = Path(args.out)
-    if png.suffix.lower() != ".png":
-        raise ValueError(f"--out {args.out}: expected a .png file name (the .svg and .pdf are "
-                         "written beside it)")
-    for p in (png, png.with_suffix(".svg"), png.with_suffix(".pdf")):
-        check_output_file(p, "--out", args.force)
+    if Path(args.out).suffix.lower() in (".png", ".svg", ".pdf"):
+        raise ValueError(f"--out {args.out}: a folder, like every command's --out (target.png, "
+                         "target.svg and target.pdf are written into it)")
+    out = prepare_output_dir(args.out, "target", args.force)
+    png = out.path("target.png")
+    for name in ("target.svg", "target.pdf"):
+        out.path(name)
     written = write_printable(target, png, dpi=args.dpi, margin=args.margin)
+    out.finish(written)
     print(f"target: {target_caption(target)}")
     w_mm, h_mm = _page_mm(png, args.dpi)
     fits = next((name for name, (a, b) in PAPER_SIZES_MM.items()
@@ -58,11 +62,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "apriltag:FAMILY:SIZE[:ID], aprilgrid:FAMILY:COLSxROWS:SIZE:SPACING[:FIRST_ID]"
                     "; sizes in metres.")
     p.add_argument("spec", metavar="SPEC", help="the target, e.g. chessboard:9x6:0.0236")
-    p.add_argument("--out", required=True, metavar="FILE.png",
-                   help="the PNG to write (FILE.svg and FILE.pdf are written beside it)")
+    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
+                   help=f"output directory (default {DEFAULT_OUT}): target.png (with its dpi), "
+                        "target.svg, target.pdf; an existing one must be empty or hold this "
+                        "command's earlier output")
     p.add_argument("--dpi", type=positive_float, default=300.0, help="PNG resolution (default 300)")
     p.add_argument("--margin", type=non_negative_float, default=0.01, metavar="METRES",
                    help="white margin around the pattern (default 0.01)")
-    p.add_argument("--force", action="store_true", help="overwrite existing files")
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that is not this command's output (never "
+                        "overwriting files the tool did not write)")
     p.set_defaults(func=run_target)
     return p

@@ -10,8 +10,9 @@ from handeye_drake.vision.targets import parse_target
 
 
 def test_the_printed_chessboard_is_detected_at_its_true_scale(tmp_path, capsys):
-    png = tmp_path / "board.png"
-    assert main(["target", "chessboard:9x6:0.0236", "--out", str(png), "--dpi", "200"]) == 0
+    out_dir = tmp_path / "board"
+    assert main(["target", "chessboard:9x6:0.0236", "--out", str(out_dir), "--dpi", "200"]) == 0
+    png = out_dir / "target.png"
     out = capsys.readouterr().out
     assert "square 23.6 mm" in out and "origin at the first inner corner" in out
     assert "page: 256 × 193 mm (fits A4)" in out  # 10 × 7 squares of 23.6 mm, 10 mm margins, a caption
@@ -29,17 +30,24 @@ def test_the_printed_chessboard_is_detected_at_its_true_scale(tmp_path, capsys):
 
 
 def test_refusals_are_one_line(tmp_path, capsys):
-    png = tmp_path / "b.png"
-    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(png)]) == 0
+    out = tmp_path / "b"
+    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(out)]) == 0
+    # The same command again reuses its own output folder (its manifest), like every command.
+    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(out)]) == 0
+    other = tmp_path / "someone_elses"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
     capsys.readouterr()
     for argv, message in (
-            (["apriltag:36h11:0.048:10", "--out", str(png)], "exists; not overwriting it"),
-            (["chessboard:9", "--out", str(tmp_path / "c.png")], "target spec 'chessboard:9'"),
-            (["chessboard:9x6:0.02", "--out", str(tmp_path / "no" / "c.png")], "does not exist"),
-            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c.jpg")], "expected a .png"),
-            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c.png"), "--dpi", "-3"],
+            (["apriltag:36h11:0.048:10", "--out", str(other)], "the directory is not empty"),
+            (["chessboard:9", "--out", str(tmp_path / "c")], "target spec 'chessboard:9'"),
+            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c.png")], "a folder, like every"),
+            (["chessboard:9x6:0.02", "--out", str(tmp_path / "c"), "--dpi", "-3"],
              "--dpi: expected a positive number")):
         assert main(["target", *argv]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and message in err, err
-    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(png), "--force"]) == 0
+    # --force writes beside the other files and never touches them.
+    assert main(["target", "apriltag:36h11:0.048:10", "--out", str(other), "--force"]) == 0
+    assert (other / "notes.txt").read_text() == "mine" and (other / "target.pdf").exists()
+    assert not (tmp_path / "c").exists()
