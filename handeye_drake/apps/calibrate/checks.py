@@ -52,6 +52,10 @@ NOT_WORSE = 1.15
 SOMEWHAT_BETTER = 0.8
 #: More outlying samples than this fraction: WARN; than the second: FAIL.
 OUTLIER_FRACTIONS = (0.1, 0.3)
+#: The camera translations' scale (``pipeline.camera_scale_test``) this many σ from 1: FAIL;
+#: beyond ``SCALE_WARN_SIGMA``: WARN.
+SCALE_FAIL_SIGMA = 5.0
+SCALE_WARN_SIGMA = 3.0
 #: Fewest samples for a calibration worth trusting (WARN below).
 MIN_SAMPLES = 8
 
@@ -337,6 +341,23 @@ def verdict(result) -> Verdict:
     hints = [] if better or base is None else explaining(
         result.hypotheses, max_deg, max_m, result.settings["max_hand_eye_distance_m"],
         SOMEWHAT_BETTER)
+    scale = getattr(result, "scale_test", None)
+    if scale is not None:
+        # The maximum-likelihood profile of the scale decides, not the quick fits' medians.
+        better = [h for h in better if h.code != "camera_scale"]
+        hints = [h for h in hints if h.code != "camera_scale"]
+        level = "FAIL" if scale["sigmas"] > SCALE_FAIL_SIGMA else (
+            "WARN" if scale["sigmas"] > SCALE_WARN_SIGMA else "")
+        if level and not better:
+            f = scale["factor"]
+            reasons.append(Reason(
+                level, "camera_scale",
+                f"the camera's translations are {1 / f:.4g}× their true size: a wrong target "
+                "size (the square or marker size given to the detector or to --target) or a "
+                f"target printed at another scale — with a free scale on them the data fit "
+                f"best at {f:.4g} ± {scale['std']:.2g}, {scale['sigmas']:.3g}σ from 1 — "
+                f"multiply the target's sizes by {f:.4g} (or --camera-translation-scale "
+                f"{f:.4g} for pose files)"))
     for level, found in (("FAIL", better), ("WARN", hints)):
         if found:
             best = found[0]

@@ -53,7 +53,8 @@ from ...estimation.solvers import METHODS
 from ...recorded.align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
                                align_streams, estimate_time_offset)
 from ...recorded.consistency import (check_mode, fixed_pose_spread, implied_fixed_poses,
-                                     inverse_stack, mean_pose, pose_residuals)
+                                     inverse_stack, mean_pose, pose_residuals,
+                                     with_scaled_translations)
 from ...recorded.formats import PoseStream
 from ...recorded.selection import InconsistentMotions, RobustFit, robust_hand_eye
 
@@ -285,6 +286,7 @@ class CalibrationResult:
     inputs: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     fixed_tests: list = field(default_factory=list)  # ``FixedTest`` per --fix component
+    scale_test: dict | None = None  # ``camera_scale_test``: the camera translations' scale
 
     @property
     def X_hand(self) -> np.ndarray:
@@ -554,7 +556,8 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                       max_hand_eye_distance: float | None = None, alternatives=None,
                       quaternion_streams=("robot", "camera"), camera_resampler=None,
                       online: bool = False, online_step_deg: float = 10.0,
-                      camera_covariances=None, robot_accuracy=None) -> CalibrationResult:
+                      camera_covariances=None, robot_accuracy=None,
+                      scale_test: bool = True) -> CalibrationResult:
     """Calibrates the hand-eye transform from a robot stream (X_BE) and a camera stream (X_CT).
 
     Args:
@@ -584,6 +587,9 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
             systematic uncertainty (e.g. intrinsics calibrated from the same images); the spread
             of the results it gives is added to the covariance (``RESAMPLES`` draws).
         online: also replay the recording through the on-line filters (``online.replay``).
+        scale_test: test the scale of the camera's translations (``camera_scale_test``; a
+            factor ≠ 1 by more than 5σ FAILs naming it). The image path leaves it to its
+            own target-size analysis (False).
         camera_covariances: optional (N, 6, 6), one per camera sample: the covariance of its
             error [δθ (rad, about C's axes); δt (m)] (``vision.detection``'s ``covariance``).
             The fit then whitens each sample by its own covariance, scaled by one factor
@@ -768,6 +774,8 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
     for t in fixed_tests:
         if t.note:
             warnings.append(t.note)
+    if scale_test:
+        result.scale_test = camera_scale_test(X_R, X_CT, kept, fit, fixed, correlation)
     reading = checks.reading_of(result)
     result.hypotheses = checks.try_alternatives(
         robot, camera, reading, checks.default_alternatives(robot, camera, reading)
@@ -778,6 +786,57 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         result.online = [replay(result, online_step_deg, min_rotation_deg, name)
                          for name in ESTIMATORS]
     return result
+
+
+# ------------------------------------------------------------------------- translation scale
+#: Step (relative) of the profile of the fit's cost in the camera translation scale.
+SCALE_STEP = 0.01
+
+
+def camera_scale_test(X_R, X_CT, idx, fit: Fit, fixed=None, correlation=None) -> dict | None:
+    """What the data say about the scale of the camera's translations (a wrong target size, a
+    scaled print, a detector given the wrong square size): the fit's cost (whitened residual²,
+    its noise held) profiled over a factor s on the camera translations of the samples ``idx``
+    — a parabola through s₀ and s₀ ± ``SCALE_STEP``, recentred once — gives the factor ŝ
+    that makes them fit best and its σ (2 / curvature)½, widened by the residual correlation
+    (``correlated_covariance``'s largest std factor). Returns {"factor", "std", "sigmas"
+    (|ŝ − 1| / σ)}, or None when the profile is not a minimum."""
+    idx = np.asarray(idx)
+    X_R_all, X_CT_all = np.asarray(X_R), np.asarray(X_CT)
+    X_R, X_CT = X_R_all[idx], X_CT_all[idx]
+    state = {"X_H": fit.X_H, "X_F": fit.X_F}
+
+    def cost(sc):
+        f = _ml_fit(X_R, with_scaled_translations(X_CT, sc), state["X_H"], fit.noise, idx,
+                    fixed or None, state["X_F"])
+        return f.cost
+
+    center, h = 1.0, SCALE_STEP
+    try:
+        for _ in range(2):
+            c = [cost(center - h), cost(center), cost(center + h)]
+            curvature = (c[0] + c[2] - 2.0 * c[1]) / (h * h)  # d²cost/ds²
+            if not (math.isfinite(curvature) and curvature > 0):
+                return None
+            step = -(c[2] - c[0]) / (2.0 * h) / curvature
+            center = float(np.clip(center + step, center - 0.2, center + 0.2))
+            h = min(SCALE_STEP, max(abs(step), 1e-3))
+    except ValueError:
+        return None
+    std = math.sqrt(2.0 / curvature)
+    # The residual correlation of the fit at the factor found (a wrong scale itself makes the
+    # residuals of the fit as read correlated).
+    try:
+        f = _ml_fit(X_R, with_scaled_translations(X_CT, center), state["X_H"], fit.noise, idx,
+                    fixed or None, state["X_F"])
+        if not fixed:
+            info = correlated_covariance(X_R_all, with_scaled_translations(X_CT_all, center),
+                                         idx, f)[2]
+            std *= max(1.0, max(info.get("std_factor") or [1.0]))
+    except (ValueError, np.linalg.LinAlgError):
+        if correlation and correlation.get("std_factor"):
+            std *= max(1.0, max(correlation["std_factor"]))
+    return {"factor": center, "std": std, "sigmas": abs(center - 1.0) / std}
 
 
 # ------------------------------------------------------------------------- held components
