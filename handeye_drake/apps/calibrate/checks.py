@@ -105,10 +105,14 @@ class Hypothesis:
     hand_eye_distance: float
     error: str = ""
     mode: str = ""  # the mode it was fitted in ("" = the mode of the data as read)
+    evidence: dict | None = None  # swapped_streams: ``swap_evidence``
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("code", "description", "fix", "rotation_deg",
-                                              "translation_m", "hand_eye_distance", "error")}
+        d = {k: getattr(self, k) for k in ("code", "description", "fix", "rotation_deg",
+                                           "translation_m", "hand_eye_distance", "error")}
+        if self.evidence is not None:
+            d["evidence"] = self.evidence
+        return d
 
 
 def _quick_fit(robot: PoseStream, camera: PoseStream, mode: str, offset: float):
@@ -137,12 +141,13 @@ class Reading:
     time_offset_range: float
     quaternion_streams: tuple
     warnings: list = field(default_factory=list)
+    camera_from_images: bool = False  # detections in images: the files cannot be swapped
 
 
 def reading_of(result) -> Reading:
     return Reading(result.mode, result.aligned.time_offset, result.time_offset_mode,
                    result.settings["time_offset_range_s"], result.settings["quaternion_streams"],
-                   result.warnings)
+                   result.warnings, bool(result.settings.get("camera_from_images")))
 
 
 def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
@@ -170,10 +175,12 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
             lambda r, c: (_stream(with_rotations(r.poses, rotation_from_swapped_quaternions(
                 r.poses[:, :3, :3])), r), _stream(with_rotations(
                     c.poses, rotation_from_swapped_quaternions(c.poses[:, :3, :3])), c), None)))
-    alts.append(Alternative(
-        "swapped_streams", "the robot and camera files are swapped",
-        "swap --robot and --camera",
-        lambda r, c: (c, r, "auto_offset" if r.has_timestamps and c.has_timestamps else None)))
+    if not reading.camera_from_images:
+        alts.append(Alternative(
+            "swapped_streams", "the robot and camera files are swapped",
+            "swap --robot and --camera",
+            lambda r, c: (c, r, "auto_offset" if r.has_timestamps and c.has_timestamps
+                          else None)))
     alts.append(Alternative(
         "other_mode",
         f"the data fit {other.replace('_', '-')}: the camera is "
@@ -239,6 +246,59 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
     return alt
 
 
+#: Interior samples used by ``stream_roughness`` (evenly spaced).
+ROUGHNESS_SAMPLES = 400
+#: Roughness below this (deg) is motion curvature or rounding, not measurement noise.
+ROUGHNESS_FLOOR_DEG = 0.003
+#: One stream this many times rougher than the other: it is the camera's.
+ROUGHNESS_RATIO = 3.0
+
+
+def stream_roughness(stream: PoseStream) -> float | None:
+    """How far each sample's rotation is from the interpolation of its two neighbours (deg,
+    median over up to ``ROUGHNESS_SAMPLES`` interior samples): the residuals of a stream about
+    a smooth motion. A robot's reported poses are smooth (their roughness is the curvature of
+    the motion between samples); a camera's carry its measurement noise. None without
+    timestamps or with fewer than 5 samples."""
+    t = stream.timestamps
+    if t is None or len(t) < 5:
+        return None
+    t = np.asarray(t, float)
+    k = np.arange(1, len(t) - 1)
+    span = t[k + 1] - t[k - 1]
+    k = k[span > 0]
+    if len(k) < 3:
+        return None
+    k = k[np.unique(np.linspace(0, len(k) - 1, min(ROUGHNESS_SAMPLES, len(k))).round()
+                    .astype(int))]
+    from scipy.spatial.transform import Rotation
+    R = np.asarray(stream.poses, float)[:, :3, :3]
+    w = (t[k] - t[k - 1]) / (t[k + 1] - t[k - 1])
+    a = Rotation.from_matrix(R[k - 1])
+    step = (a.inv() * Rotation.from_matrix(R[k + 1])).as_rotvec()
+    interp = a * Rotation.from_rotvec(step * w[:, None])
+    err = (interp.inv() * Rotation.from_matrix(R[k])).magnitude()
+    return float(np.degrees(np.median(err)))
+
+
+def swap_evidence(robot: PoseStream, camera: PoseStream) -> dict:
+    """Which stream carries the camera's noise, from their roughness (``stream_roughness``):
+    ``reading`` "as_read" (the camera stream is the rough one), "swapped" (the robot stream
+    is), or None (no timestamps, or no clear difference) — the residuals of the AX = ZB fits
+    cannot tell: swapping both streams fits exactly as well, the target's pose taking the
+    hand-eye transform's place."""
+    rough_r, rough_c = stream_roughness(robot), stream_roughness(camera)
+    reading = None
+    if rough_r is not None and rough_c is not None:
+        r, c = max(rough_r, ROUGHNESS_FLOOR_DEG), max(rough_c, ROUGHNESS_FLOOR_DEG)
+        if c >= ROUGHNESS_RATIO * r:
+            reading = "as_read"
+        elif r >= ROUGHNESS_RATIO * c:
+            reading = "swapped"
+    return {"reading": reading, "robot_roughness_deg": rough_r,
+            "camera_roughness_deg": rough_c}
+
+
 def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypothesis]:
     """Fits the data as read and each alternative quickly, on the same subset size."""
     offset = reading.time_offset
@@ -259,7 +319,9 @@ def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypo
                 off = estimate_time_offset(side, c, reading.time_offset_range).offset
             out.append(Hypothesis(alt.code, alt.description, alt.fix,
                                   *_quick_fit(r, c, mode or reading.mode, off),
-                                  mode="" if mode in (None, reading.mode) else mode))
+                                  mode="" if mode in (None, reading.mode) else mode,
+                                  evidence=swap_evidence(robot, camera)
+                                  if alt.code == "swapped_streams" else None))
         except ValueError as e:
             out.append(Hypothesis(alt.code, alt.description, alt.fix, math.inf, math.inf,
                                   math.inf, error=" ".join(str(e).split())[:200]))
@@ -287,6 +349,21 @@ def _explains(h: Hypothesis, base: Hypothesis, max_deg: float, max_m: float,
     own_distance = DEFAULT_MAX_HAND_EYE_DISTANCE[h.mode] if h.mode else max_distance
     plausible = (h.rotation_deg <= max_deg * 1.54 and h.translation_m <= max_m * 1.54
                  and h.hand_eye_distance <= own_distance)
+    fits = (h.rotation_deg <= max_deg * 1.54 and h.translation_m <= max_m * 1.54
+            and np.isfinite(h.rotation_deg))
+    if h.code == "swapped_streams" and h.evidence is not None:
+        # Both readings fit AX = ZB alike (their residual medians are of different points and
+        # frames, not comparable); the stream that carries the noise says which is the camera.
+        which = h.evidence.get("reading")
+        if which == "swapped":
+            return fits
+        if which == "as_read" or not fits:
+            return False
+        # No timestamps to tell: the residuals decide only when far better (a mere
+        # difference in medians is no evidence; ``swap_ambiguity`` reports the tie).
+        b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+        return (h.rotation_deg / b_deg <= better_by and h.translation_m / b_m <= better_by
+                and better_by <= BETTER_BY)
     if not plausible or not np.isfinite(h.rotation_deg):
         return False
     b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
@@ -375,11 +452,13 @@ def verdict(result) -> Verdict:
             + ("" if better else "; no usual mistake (quaternion order, swapped or "
                "inverted streams, units, clock offset) explains them: check that the streams "
                "belong to the same recording and that the target did not move")))
+    swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
+    swap_reading = (swapped.evidence or {}).get("reading") if swapped is not None else None
     if far and not noisy:
-        swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
         hint = ""
-        if swapped is not None and swapped.hand_eye_distance < 0.5 * np.linalg.norm(
-                fit.X_H[:3, 3]) and swapped.rotation_deg < 4 * max(base.rotation_deg, 1e-3):
+        if swapped is not None and swap_reading != "as_read" and \
+                swapped.hand_eye_distance < 0.5 * np.linalg.norm(fit.X_H[:3, 3]) and \
+                swapped.rotation_deg < 4 * max(base.rotation_deg, 1e-3):
             hint = (f"; with robot and camera files swapped the data fit as well and put the "
                     f"camera {swapped.hand_eye_distance:.3g} m away — swapped files?")
         reasons.append(Reason(
@@ -387,6 +466,26 @@ def verdict(result) -> Verdict:
             f"{name} puts the camera {np.linalg.norm(fit.X_H[:3, 3]):.3g} m from the "
             f"{'flange' if result.mode == 'eye_in_hand' else 'robot base'} (more than "
             f"--max-hand-eye-distance {result.settings['max_hand_eye_distance_m']:g} m)" + hint))
+    if swapped is not None and swapped.evidence is not None and swap_reading is None \
+            and not better and not far and not noisy and not any(
+                r.code == "swapped_streams" for r in reasons):
+        # No timestamps to say which stream is the camera's, and both readings fit: the
+        # result is one of two, not an answer.
+        own = DEFAULT_MAX_HAND_EYE_DISTANCE[swapped.mode] if swapped.mode else \
+            result.settings["max_hand_eye_distance_m"]
+        b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+        if (np.isfinite(swapped.rotation_deg) and swapped.hand_eye_distance <= own
+                and swapped.rotation_deg <= 2 * b_deg and swapped.translation_m <= 2 * b_m):
+            reasons.append(Reason(
+                "WARN", "swap_ambiguous",
+                f"the data fit as well with the robot and camera files swapped (median "
+                f"residuals {swapped.rotation_deg:.3g}° / {1000 * swapped.translation_m:.3g} mm "
+                f"instead of {base.rotation_deg:.3g}° / {1000 * base.translation_m:.3g} mm; the "
+                f"camera would be {swapped.hand_eye_distance:.3g} m from the "
+                f"{'flange' if result.mode == 'eye_in_hand' else 'robot base'}): AX = ZB fits "
+                "both readings alike, and without timestamps nothing says which stream is the "
+                "camera's — check that --robot holds the robot's poses and --camera the "
+                "camera's"))
     n_fit = int(np.sum(result.sample_used == "fit"))
     if n_fit < MIN_SAMPLES:
         reasons.append(Reason("WARN", "too_few_samples",

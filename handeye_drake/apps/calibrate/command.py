@@ -263,7 +263,7 @@ def run_calibrate_command(args) -> int:
         robot_accuracy=args.robot_accuracy if any(args.robot_accuracy) else None,
         quaternion_streams=streams.quaternion_streams,
         camera_resampler=streams.camera_resampler, online=args.online,
-        online_step_deg=args.online_step, scale_test=not (args.images or args.image_topic))
+        online_step_deg=args.online_step, camera_from_images=bool(args.images or args.image_topic))
     result.inputs = streams.inputs
     if streams.images:
         result.inputs["images"]["per_image"] = [vars(r) for r in streams.images]

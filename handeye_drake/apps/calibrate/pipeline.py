@@ -557,7 +557,7 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                       quaternion_streams=("robot", "camera"), camera_resampler=None,
                       online: bool = False, online_step_deg: float = 10.0,
                       camera_covariances=None, robot_accuracy=None,
-                      scale_test: bool = True) -> CalibrationResult:
+                      camera_from_images: bool = False) -> CalibrationResult:
     """Calibrates the hand-eye transform from a robot stream (X_BE) and a camera stream (X_CT).
 
     Args:
@@ -587,9 +587,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
             systematic uncertainty (e.g. intrinsics calibrated from the same images); the spread
             of the results it gives is added to the covariance (``RESAMPLES`` draws).
         online: also replay the recording through the on-line filters (``online.replay``).
-        scale_test: test the scale of the camera's translations (``camera_scale_test``; a
-            factor ≠ 1 by more than 5σ FAILs naming it). The image path leaves it to its
-            own target-size analysis (False).
+        camera_from_images: the camera poses are detections of a target in images (not a
+            pose file or topic): the files cannot have been swapped, and the target size is
+            left to the image path's own analysis. Otherwise the scale of the camera's
+            translations is tested (``camera_scale_test``; a factor ≠ 1 by more than 5σ
+            FAILs naming it).
         camera_covariances: optional (N, 6, 6), one per camera sample: the covariance of its
             error [δθ (rad, about C's axes); δt (m)] (``vision.detection``'s ``covariance``).
             The fit then whitens each sample by its own covariance, scaled by one factor
@@ -768,13 +770,14 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                   "fixed": dict(fixed),
                   "robot_accuracy": None if robot_accuracy is None else
                   [float(v) for v in robot_accuracy],
-                  "quaternion_streams": tuple(quaternion_streams)},
+                  "quaternion_streams": tuple(quaternion_streams),
+                  "camera_from_images": bool(camera_from_images)},
         seed=int(seed), time_offset_refined=refined, warnings=warnings,
         correlation=correlation, fixed_tests=fixed_tests)
     for t in fixed_tests:
         if t.note:
             warnings.append(t.note)
-    if scale_test:
+    if not camera_from_images:
         result.scale_test = camera_scale_test(X_R, X_CT, kept, fit, fixed, correlation)
     reading = checks.reading_of(result)
     result.hypotheses = checks.try_alternatives(
