@@ -198,7 +198,8 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
                 _stream(with_scaled_translations(c.poses, 1e-3), c) if w == "camera" else c,
                 None)))
     alts.append(_camera_scale_alternative(reading))
-    if reading.time_offset_mode == "given" and robot.has_timestamps and camera.has_timestamps:
+    if (reading.time_offset_mode == "given" or "same timestamps" in reading.time_offset_mode) \
+            and robot.has_timestamps and camera.has_timestamps:
         alts.append(Alternative(
             "clock_offset", "the clock offset given does not fit the data",
             "--time-offset auto", lambda r, c: (r, c, "auto_offset")))

@@ -649,7 +649,12 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
     estimate = None
     if time_offset is None:
         offset, offset_mode = 0.0, "default: none (no timestamps)"
-        if robot.has_timestamps and camera.has_timestamps:
+        if robot.has_timestamps and camera.has_timestamps and np.array_equal(
+                robot.timestamps, camera.timestamps):
+            # Stamped alike, sample by sample: paired by whoever wrote them (--time-offset
+            # auto still estimates an offset).
+            offset_mode = "default: 0 (both streams have the same timestamps)"
+        elif robot.has_timestamps and camera.has_timestamps:
             try:
                 estimate = estimate_time_offset(robot_side, camera, time_offset_range)
                 offset, offset_mode = estimate.offset, "auto (default)"
