@@ -119,3 +119,14 @@ def test_streams_with_identical_timestamps_keep_every_sample_with_offset_zero(se
     a = align_streams(pose_stream(robot.poses, t, "robot"),
                       pose_stream(camera.poses, t + 2e-4 * (1 if seed % 2 else -1), "camera"))
     assert len(a.X_BE) == 30
+
+
+def test_images_with_a_wrong_fix_fail_and_a_right_one_passes(tmp_path, capsys):
+    from tests.apps.test_calibrate import IMAGES
+    args = ["calibrate", "--images", str(IMAGES), "--robot", str(IMAGES / "robot_poses.tum"),
+            "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--intrinsics",
+            str(IMAGES / "intrinsics.yaml")]
+    assert main(args + ["--fix", "roll_deg=-2", "--out", str(tmp_path / "wrong")]) == 1
+    assert "with roll free the data give roll = -2.9" in capsys.readouterr().out
+    assert main(args + ["--fix", "roll_deg=-3", "--out", str(tmp_path / "right")]) == 0
+    assert "the data determine roll themselves" in capsys.readouterr().out

@@ -725,8 +725,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         # A held component stays exact: the robot's error is conditioned on it.
         fit.covariance = fit.covariance + conditioned_on_fixed(
             robot_error_covariance(fit.X_H, robot_accuracy), fit.X_H, fixed)
+    systematic_of = None if camera_resampler is None else (
+        lambda f, k, held: _systematic_covariance(camera_resampler, aligned, X_R, k, f, held,
+                                                  seed))
     fixed_tests = [fixed_component_test(X_R, X_CT, fit_idx, fit, fixed, c, given_for(aligned),
-                                        robot_accuracy) for c in fixed]
+                                        robot_accuracy, systematic_of) for c in fixed]
 
     systematic = None
     if camera_resampler is not None:
@@ -920,11 +923,12 @@ def _component_text(c, v, std=None) -> str:
     return f"{math.degrees(v):.4g}°" + ("" if std is None else f" ± {math.degrees(std):.2g}°")
 
 
-def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accuracy
-                         ) -> FixedTest:
+def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accuracy,
+                         systematic_of=None) -> FixedTest:
     """``FixedTest`` of the held component ``c``: the samples ``idx`` refitted (outliers and
-    noise re-estimated) with ``c`` free; its σ includes the residual correlation and the
-    robot's accuracy as the result's does."""
+    noise re-estimated) with ``c`` free; its σ includes the residual correlation, the robot's
+    accuracy and (``systematic_of(fit, kept, held)``, intrinsics calibrated from the same
+    images) the camera poses' systematic uncertainty, as the result's does."""
     value = float(fixed[c])
     rest = {k: v for k, v in fixed.items() if k != c}
     held = "--fix " + c + ("" if c.startswith("t") else "_deg") + "=" + (
@@ -937,6 +941,8 @@ def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accura
         if robot_accuracy is not None:
             cov = cov + conditioned_on_fixed(robot_error_covariance(free.X_H, robot_accuracy),
                                              free.X_H, rest)
+        if systematic_of is not None:
+            cov = cov + systematic_of(free, kept, rest)
         data, std = component_value(free.X_H, cov, c)
     except ValueError:  # UnobservableError among them: the data leave c to the user
         return FixedTest(c, value)
