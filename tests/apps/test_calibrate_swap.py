@@ -94,3 +94,15 @@ def test_without_timestamps_a_swap_is_never_ok_and_the_right_order_never_called_
     assert "swapped_streams" not in _codes(r)
     r, error = _run(camera, robot, mode)
     assert r is None or r.verdict.status != "OK", r.verdict.reasons
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_sparse_robot_stream_is_not_taken_for_the_camera(seed):
+    """The roughness is compared at the same spacing: a robot logged at 2 Hz beside a 15 Hz
+    camera is not 'rougher' for its longer interpolation intervals."""
+    from handeye_drake.apps.calibrate.checks import swap_evidence
+    robot, camera, _ = _recording("eye_in_hand", 0.3, seed)
+    sparse = pose_stream(robot.poses[::25], robot.timestamps[::25], "robot")
+    assert swap_evidence(sparse, camera)["reading"] != "swapped"
+    assert swap_evidence(robot, camera)["reading"] == "as_read"
+    assert swap_evidence(camera, robot)["reading"] == "swapped"

@@ -255,40 +255,57 @@ ROUGHNESS_FLOOR_DEG = 0.003
 ROUGHNESS_RATIO = 3.0
 
 
-def stream_roughness(stream: PoseStream) -> float | None:
-    """How far each sample's rotation is from the interpolation of its two neighbours (deg,
-    median over up to ``ROUGHNESS_SAMPLES`` interior samples): the residuals of a stream about
-    a smooth motion. A robot's reported poses are smooth (their roughness is the curvature of
-    the motion between samples); a camera's carry its measurement noise. None without
-    timestamps or with fewer than 5 samples."""
+def _median_period(stream: PoseStream) -> float | None:
     t = stream.timestamps
-    if t is None or len(t) < 5:
+    if t is None or len(t) < 2:
+        return None
+    d = np.diff(np.asarray(t, float))
+    d = d[d > 0]
+    return float(np.median(d)) if len(d) else None
+
+
+def stream_roughness(stream: PoseStream, spacing: float | None = None) -> float | None:
+    """How far each sample's rotation is from the interpolation of the samples ``spacing``
+    seconds before and after it (deg, median over up to ``ROUGHNESS_SAMPLES`` samples; default
+    spacing: the stream's own period): the residuals of a stream about a smooth motion. A
+    robot's reported poses are smooth (their roughness is the curvature of the motion over the
+    spacing, the same for both streams at the same spacing); a camera's carry its measurement
+    noise on top. None without timestamps or with fewer than 5 samples."""
+    t = stream.timestamps
+    period = _median_period(stream)
+    if t is None or len(t) < 5 or period is None:
         return None
     t = np.asarray(t, float)
-    k = np.arange(1, len(t) - 1)
-    span = t[k + 1] - t[k - 1]
-    k = k[span > 0]
+    m = max(1, int(round((spacing or period) / period)))
+    k = np.arange(m, len(t) - m)
+    if len(k) < 3:
+        return None
+    k = k[t[k + m] > t[k - m]]
     if len(k) < 3:
         return None
     k = k[np.unique(np.linspace(0, len(k) - 1, min(ROUGHNESS_SAMPLES, len(k))).round()
                     .astype(int))]
     from scipy.spatial.transform import Rotation
     R = np.asarray(stream.poses, float)[:, :3, :3]
-    w = (t[k] - t[k - 1]) / (t[k + 1] - t[k - 1])
-    a = Rotation.from_matrix(R[k - 1])
-    step = (a.inv() * Rotation.from_matrix(R[k + 1])).as_rotvec()
+    w = (t[k] - t[k - m]) / (t[k + m] - t[k - m])
+    a = Rotation.from_matrix(R[k - m])
+    step = (a.inv() * Rotation.from_matrix(R[k + m])).as_rotvec()
     interp = a * Rotation.from_rotvec(step * w[:, None])
     err = (interp.inv() * Rotation.from_matrix(R[k])).magnitude()
     return float(np.degrees(np.median(err)))
 
 
 def swap_evidence(robot: PoseStream, camera: PoseStream) -> dict:
-    """Which stream carries the camera's noise, from their roughness (``stream_roughness``):
+    """Which stream carries the camera's noise, from their roughness (``stream_roughness``, both
+    at the sparser stream's period so that the motion's curvature counts alike):
     ``reading`` "as_read" (the camera stream is the rough one), "swapped" (the robot stream
     is), or None (no timestamps, or no clear difference) — the residuals of the AX = ZB fits
     cannot tell: swapping both streams fits exactly as well, the target's pose taking the
     hand-eye transform's place."""
-    rough_r, rough_c = stream_roughness(robot), stream_roughness(camera)
+    periods = [p for p in (_median_period(robot), _median_period(camera)) if p]
+    spacing = max(periods) if len(periods) == 2 else None
+    rough_r = stream_roughness(robot, spacing) if spacing else None
+    rough_c = stream_roughness(camera, spacing) if spacing else None
     reading = None
     if rough_r is not None and rough_c is not None:
         r, c = max(rough_r, ROUGHNESS_FLOOR_DEG), max(rough_c, ROUGHNESS_FLOOR_DEG)
