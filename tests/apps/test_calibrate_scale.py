@@ -63,3 +63,18 @@ def test_the_shipped_recording_with_a_2_percent_scale_fails_and_exports_nothing(
                                    r"true size", text)
     assert re.search(r"--camera-translation-scale 1\.02\d* for pose files", text)
     assert not (out / "handeye.urdf").exists()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_scaled_robot_stream_fails_and_the_message_names_that_reading_too(seed):
+    """A robot stream's translations off by k look exactly like the camera's off by 1/k: the
+    FAIL names both readings (the data cannot tell them apart), never an OK."""
+    rng = np.random.default_rng(200 + seed)
+    robot, camera, _ = _streams("eye_in_hand", seed, n=40)
+    for k in (rng.uniform(0.93, 0.98), rng.uniform(1.02, 1.07)):
+        scaled = pose_stream(with_scaled_translations(robot.poses, k), None, "robot")
+        out = _outcome(scaled, camera, "eye_in_hand")
+        assert out[0] in ("FAIL", "ERROR"), (k, out[:2])
+        if out[0] == "FAIL":
+            m = re.search(r"robot's translations are ([0-9.]+)× theirs", out[1])
+            assert m and abs(float(m.group(1)) / k - 1) < 0.01, (k, out[1])

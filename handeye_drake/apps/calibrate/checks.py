@@ -450,9 +450,10 @@ def verdict(result) -> Verdict:
                 f"the camera's translations are {1 / f:.4g}× their true size: a wrong target "
                 "size (the square or marker size given to the detector or to --target) or a "
                 f"target printed at another scale — with a free scale on them the data fit "
-                f"best at {f:.4g} ± {scale['std']:.2g}, {scale['sigmas']:.3g}σ from 1 — "
-                f"multiply the target's sizes by {f:.4g} (or --camera-translation-scale "
-                f"{f:.4g} for pose files)"))
+                f"best at {f:.4g} ± {scale['std']:.2g}, {scale['sigmas']:.3g}σ from 1 (or the "
+                f"robot's translations are {f:.4g}× theirs: the data cannot tell the two "
+                f"apart) — multiply the target's sizes by {f:.4g} (or "
+                f"--camera-translation-scale {f:.4g} for pose files)"))
     for level, found in (("FAIL", better), ("WARN", hints)):
         if found:
             best = found[0]
