@@ -20,7 +20,12 @@ Alternatives (``default_alternatives``), each re-fitted quickly on a subset of t
 compared by their median pose residuals: quaternions written scalar-first (w x y z) in either
 file, robot and camera streams swapped, the other mode (equivalently: robot poses X_EB given for
 X_BE, or camera poses X_TC for X_CT), a file in millimetres, and a clock offset other than the
-one forced.
+one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
+as well (the target's pose takes the hand-eye transform's place), so the stream that carries
+the noise says which is the camera's (``swap_evidence``; without timestamps a tie is a WARN),
+whatever the hand-eye distance; and the camera translations' scale is the maximum-likelihood
+profile's (``pipeline.camera_scale_test``: > 5σ from 1 FAILs). Held ``--fix`` values are
+tested against the fit that frees them (``pipeline.fixed_component_test``).
 """
 
 from __future__ import annotations
