@@ -98,12 +98,18 @@ def _too_few(stream: PoseStream, need: int, what: str) -> ValueError:
                       f"are needed ({what})")
 
 
+#: Camera instants outside the robot's time span by at most this fraction of the median robot
+#: period are taken at the span's end (not dropped).
+EDGE_TOLERANCE = 0.01
+
+
 def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.0,
                   max_gap: float | None = None, min_samples: int = 3) -> AlignedSamples:
     """Pairs each camera sample with the robot pose at the same instant.
 
     With timestamps on both streams the robot pose is interpolated at t_camera − time_offset;
-    camera samples outside the robot's time span, or inside a robot sampling interval longer
+    camera samples outside the robot's time span (by more than ``EDGE_TOLERANCE`` of a robot
+    period), or inside a robot sampling interval longer
     than ``max_gap`` (default 5 × the median robot period), are dropped and listed. Streams
     without timestamps are paired by index and must have the same length (time_offset 0).
 
@@ -147,6 +153,10 @@ def align_streams(robot: PoseStream, camera: PoseStream, time_offset: float = 0.
         max_gap = 5.0 * _median_period(robot.timestamps)
     q = camera.timestamps - time_offset
     t0, t1 = interp.span
+    # An instant a hair outside the span (an offset of a fraction of a millisecond on streams
+    # stamped alike) is the end pose, not a lost sample.
+    edge = EDGE_TOLERANCE * _median_period(robot.timestamps)
+    q = np.where((q < t0) & (q >= t0 - edge), t0, np.where((q > t1) & (q <= t1 + edge), t1, q))
     inside = (q >= t0) & (q <= t1)
     in_gap = np.zeros_like(inside)
     in_gap[inside] = interp.segment_length(q[inside]) > max_gap

@@ -102,7 +102,8 @@ class CalibrationOptions:
             max_hand_eye_distance=self.max_hand_eye_distance_m,
             robot_accuracy=self.robot_accuracy, quaternion_streams=streams.quaternion_streams,
             camera_resampler=None if corner_level else streams.camera_resampler,
-            online=self.online, online_step_deg=self.online_step_deg)
+            online=self.online, online_step_deg=self.online_step_deg,
+            camera_from_images=bool(streams.images))
 
 
 def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()

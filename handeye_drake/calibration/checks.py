@@ -20,7 +20,12 @@ Alternatives (``default_alternatives``), each re-fitted quickly on a subset of t
 compared by their median pose residuals: quaternions written scalar-first (w x y z) in either
 file, robot and camera streams swapped, the other mode (equivalently: robot poses X_EB given for
 X_BE, or camera poses X_TC for X_CT), a file in millimetres, and a clock offset other than the
-one forced.
+one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
+as well (the target's pose takes the hand-eye transform's place), so the stream that carries
+the noise says which is the camera's (``swap_evidence``; without timestamps a tie is a WARN),
+whatever the hand-eye distance; and the camera translations' scale is the maximum-likelihood
+profile's (``pipeline.camera_scale_test``: > 5σ from 1 FAILs). Held ``--fix`` values are
+tested against the fit that frees them (``pipeline.fixed_component_test``).
 """
 
 from __future__ import annotations
@@ -52,6 +57,10 @@ NOT_WORSE = 1.15
 SOMEWHAT_BETTER = 0.8
 #: More outlying samples than this fraction: WARN; than the second: FAIL.
 OUTLIER_FRACTIONS = (0.1, 0.3)
+#: The camera translations' scale (``pipeline.camera_scale_test``) this many σ from 1: FAIL;
+#: beyond ``SCALE_WARN_SIGMA``: WARN.
+SCALE_FAIL_SIGMA = 5.0
+SCALE_WARN_SIGMA = 3.0
 #: Fewest samples for a calibration worth trusting (WARN below).
 MIN_SAMPLES = 8
 
@@ -101,10 +110,14 @@ class Hypothesis:
     hand_eye_distance: float
     error: str = ""
     mode: str = ""  # the mode it was fitted in ("" = the mode of the data as read)
+    evidence: dict | None = None  # swapped_streams: ``swap_evidence``
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("code", "description", "fix", "rotation_deg",
-                                              "translation_m", "hand_eye_distance", "error")}
+        d = {k: getattr(self, k) for k in ("code", "description", "fix", "rotation_deg",
+                                           "translation_m", "hand_eye_distance", "error")}
+        if self.evidence is not None:
+            d["evidence"] = self.evidence
+        return d
 
 
 def _quick_fit(robot: PoseStream, camera: PoseStream, mode: str, offset: float):
@@ -133,12 +146,13 @@ class Reading:
     time_offset_range: float
     quaternion_streams: tuple
     warnings: list = field(default_factory=list)
+    camera_from_images: bool = False  # detections in images: the files cannot be swapped
 
 
 def reading_of(result) -> Reading:
     return Reading(result.mode, result.aligned.time_offset, result.time_offset_mode,
                    result.settings["time_offset_range_s"], result.settings["quaternion_streams"],
-                   result.warnings)
+                   result.warnings, bool(result.settings.get("camera_from_images")))
 
 
 def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
@@ -166,10 +180,12 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
             lambda r, c: (_stream(with_rotations(r.poses, rotation_from_swapped_quaternions(
                 r.poses[:, :3, :3])), r), _stream(with_rotations(
                     c.poses, rotation_from_swapped_quaternions(c.poses[:, :3, :3])), c), None)))
-    alts.append(Alternative(
-        "swapped_streams", "the robot and camera files are swapped",
-        "swap --robot and --camera",
-        lambda r, c: (c, r, "auto_offset" if r.has_timestamps and c.has_timestamps else None)))
+    if not reading.camera_from_images:
+        alts.append(Alternative(
+            "swapped_streams", "the robot and camera files are swapped",
+            "swap --robot and --camera",
+            lambda r, c: (c, r, "auto_offset" if r.has_timestamps and c.has_timestamps
+                          else None)))
     alts.append(Alternative(
         "other_mode",
         f"the data fit {other.replace('_', '-')}: the camera is "
@@ -187,7 +203,8 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
                 _stream(with_scaled_translations(c.poses, 1e-3), c) if w == "camera" else c,
                 None)))
     alts.append(_camera_scale_alternative(reading))
-    if reading.time_offset_mode == "given" and robot.has_timestamps and camera.has_timestamps:
+    if (reading.time_offset_mode == "given" or "same timestamps" in reading.time_offset_mode) \
+            and robot.has_timestamps and camera.has_timestamps:
         alts.append(Alternative(
             "clock_offset", "the clock offset given does not fit the data",
             "--time-offset auto", lambda r, c: (r, c, "auto_offset")))
@@ -235,6 +252,76 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
     return alt
 
 
+#: Interior samples used by ``stream_roughness`` (evenly spaced).
+ROUGHNESS_SAMPLES = 400
+#: Roughness below this (deg) is motion curvature or rounding, not measurement noise.
+ROUGHNESS_FLOOR_DEG = 0.003
+#: One stream this many times rougher than the other: it is the camera's.
+ROUGHNESS_RATIO = 3.0
+
+
+def _median_period(stream: PoseStream) -> float | None:
+    t = stream.timestamps
+    if t is None or len(t) < 2:
+        return None
+    d = np.diff(np.asarray(t, float))
+    d = d[d > 0]
+    return float(np.median(d)) if len(d) else None
+
+
+def stream_roughness(stream: PoseStream, spacing: float | None = None) -> float | None:
+    """How far each sample's rotation is from the interpolation of the samples ``spacing``
+    seconds before and after it (deg, median over up to ``ROUGHNESS_SAMPLES`` samples; default
+    spacing: the stream's own period): the residuals of a stream about a smooth motion. A
+    robot's reported poses are smooth (their roughness is the curvature of the motion over the
+    spacing, the same for both streams at the same spacing); a camera's carry its measurement
+    noise on top. None without timestamps or with fewer than 5 samples."""
+    t = stream.timestamps
+    period = _median_period(stream)
+    if t is None or len(t) < 5 or period is None:
+        return None
+    t = np.asarray(t, float)
+    m = max(1, int(round((spacing or period) / period)))
+    k = np.arange(m, len(t) - m)
+    if len(k) < 3:
+        return None
+    k = k[t[k + m] > t[k - m]]
+    if len(k) < 3:
+        return None
+    k = k[np.unique(np.linspace(0, len(k) - 1, min(ROUGHNESS_SAMPLES, len(k))).round()
+                    .astype(int))]
+    from scipy.spatial.transform import Rotation
+    R = np.asarray(stream.poses, float)[:, :3, :3]
+    w = (t[k] - t[k - m]) / (t[k + m] - t[k - m])
+    a = Rotation.from_matrix(R[k - m])
+    step = (a.inv() * Rotation.from_matrix(R[k + m])).as_rotvec()
+    interp = a * Rotation.from_rotvec(step * w[:, None])
+    err = (interp.inv() * Rotation.from_matrix(R[k])).magnitude()
+    return float(np.degrees(np.median(err)))
+
+
+def swap_evidence(robot: PoseStream, camera: PoseStream) -> dict:
+    """Which stream carries the camera's noise, from their roughness (``stream_roughness``, both
+    at the sparser stream's period so that the motion's curvature counts alike):
+    ``reading`` "as_read" (the camera stream is the rough one), "swapped" (the robot stream
+    is), or None (no timestamps, or no clear difference) — the residuals of the AX = ZB fits
+    cannot tell: swapping both streams fits exactly as well, the target's pose taking the
+    hand-eye transform's place."""
+    periods = [p for p in (_median_period(robot), _median_period(camera)) if p]
+    spacing = max(periods) if len(periods) == 2 else None
+    rough_r = stream_roughness(robot, spacing) if spacing else None
+    rough_c = stream_roughness(camera, spacing) if spacing else None
+    reading = None
+    if rough_r is not None and rough_c is not None:
+        r, c = max(rough_r, ROUGHNESS_FLOOR_DEG), max(rough_c, ROUGHNESS_FLOOR_DEG)
+        if c >= ROUGHNESS_RATIO * r:
+            reading = "as_read"
+        elif r >= ROUGHNESS_RATIO * c:
+            reading = "swapped"
+    return {"reading": reading, "robot_roughness_deg": rough_r,
+            "camera_roughness_deg": rough_c}
+
+
 def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypothesis]:
     """Fits the data as read and each alternative quickly, on the same subset size."""
     offset = reading.time_offset
@@ -255,7 +342,9 @@ def try_alternatives(robot, camera, reading: Reading, alternatives) -> list[Hypo
                 off = estimate_time_offset(side, c, reading.time_offset_range).offset
             out.append(Hypothesis(alt.code, alt.description, alt.fix,
                                   *_quick_fit(r, c, mode or reading.mode, off),
-                                  mode="" if mode in (None, reading.mode) else mode))
+                                  mode="" if mode in (None, reading.mode) else mode,
+                                  evidence=swap_evidence(robot, camera)
+                                  if alt.code == "swapped_streams" else None))
         except ValueError as e:
             out.append(Hypothesis(alt.code, alt.description, alt.fix, math.inf, math.inf,
                                   math.inf, error=" ".join(str(e).split())[:200]))
@@ -283,6 +372,21 @@ def _explains(h: Hypothesis, base: Hypothesis, max_deg: float, max_m: float,
     own_distance = DEFAULT_MAX_HAND_EYE_DISTANCE[h.mode] if h.mode else max_distance
     plausible = (h.rotation_deg <= max_deg * 1.54 and h.translation_m <= max_m * 1.54
                  and h.hand_eye_distance <= own_distance)
+    fits = (h.rotation_deg <= max_deg * 1.54 and h.translation_m <= max_m * 1.54
+            and np.isfinite(h.rotation_deg))
+    if h.code == "swapped_streams" and h.evidence is not None:
+        # Both readings fit AX = ZB alike (their residual medians are of different points and
+        # frames, not comparable); the stream that carries the noise says which is the camera.
+        which = h.evidence.get("reading")
+        if which == "swapped":
+            return fits
+        if which == "as_read" or not fits:
+            return False
+        # No timestamps to tell: the residuals decide only when far better (a mere
+        # difference in medians is no evidence; ``swap_ambiguity`` reports the tie).
+        b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+        return (h.rotation_deg / b_deg <= better_by and h.translation_m / b_m <= better_by
+                and better_by <= BETTER_BY)
     if not plausible or not np.isfinite(h.rotation_deg):
         return False
     b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
@@ -337,6 +441,24 @@ def verdict(result) -> Verdict:
     hints = [] if better or base is None else explaining(
         result.hypotheses, max_deg, max_m, result.settings["max_hand_eye_distance_m"],
         SOMEWHAT_BETTER)
+    scale = getattr(result, "scale_test", None)
+    if scale is not None:
+        # The maximum-likelihood profile of the scale decides, not the quick fits' medians.
+        better = [h for h in better if h.code != "camera_scale"]
+        hints = [h for h in hints if h.code != "camera_scale"]
+        level = "FAIL" if scale["sigmas"] > SCALE_FAIL_SIGMA else (
+            "WARN" if scale["sigmas"] > SCALE_WARN_SIGMA else "")
+        if level and not better:
+            f = scale["factor"]
+            reasons.append(Reason(
+                level, "camera_scale",
+                f"the camera's translations are {1 / f:.4g}× their true size: a wrong target "
+                "size (the square or marker size given to the detector or to --target) or a "
+                f"target printed at another scale — with a free scale on them the data fit "
+                f"best at {f:.4g} ± {scale['std']:.2g}, {scale['sigmas']:.3g}σ from 1 (or the "
+                f"robot's translations are {f:.4g}× theirs: the data cannot tell the two "
+                f"apart) — multiply the target's sizes by {f:.4g} (or "
+                f"--camera-translation-scale {f:.4g} for pose files)"))
     for level, found in (("FAIL", better), ("WARN", hints)):
         if found:
             best = found[0]
@@ -354,11 +476,13 @@ def verdict(result) -> Verdict:
             + ("" if better else "; no usual mistake (quaternion order, swapped or "
                "inverted streams, units, clock offset) explains them: check that the streams "
                "belong to the same recording and that the target did not move")))
+    swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
+    swap_reading = (swapped.evidence or {}).get("reading") if swapped is not None else None
     if far and not noisy:
-        swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
         hint = ""
-        if swapped is not None and swapped.hand_eye_distance < 0.5 * np.linalg.norm(
-                fit.X_H[:3, 3]) and swapped.rotation_deg < 4 * max(base.rotation_deg, 1e-3):
+        if swapped is not None and swap_reading != "as_read" and \
+                swapped.hand_eye_distance < 0.5 * np.linalg.norm(fit.X_H[:3, 3]) and \
+                swapped.rotation_deg < 4 * max(base.rotation_deg, 1e-3):
             hint = (f"; with robot and camera files swapped the data fit as well and put the "
                     f"camera {swapped.hand_eye_distance:.3g} m away — swapped files?")
         reasons.append(Reason(
@@ -366,6 +490,26 @@ def verdict(result) -> Verdict:
             f"{name} puts the camera {np.linalg.norm(fit.X_H[:3, 3]):.3g} m from the "
             f"{'flange' if result.mode == 'eye_in_hand' else 'robot base'} (more than "
             f"--max-hand-eye-distance {result.settings['max_hand_eye_distance_m']:g} m)" + hint))
+    if swapped is not None and swapped.evidence is not None and swap_reading is None \
+            and not better and not far and not noisy and not any(
+                r.code == "swapped_streams" for r in reasons):
+        # No timestamps to say which stream is the camera's, and both readings fit: the
+        # result is one of two, not an answer.
+        own = DEFAULT_MAX_HAND_EYE_DISTANCE[swapped.mode] if swapped.mode else \
+            result.settings["max_hand_eye_distance_m"]
+        b_deg, b_m = max(base.rotation_deg, 1e-3), max(base.translation_m, 1e-5)
+        if (np.isfinite(swapped.rotation_deg) and swapped.hand_eye_distance <= own
+                and swapped.rotation_deg <= 2 * b_deg and swapped.translation_m <= 2 * b_m):
+            reasons.append(Reason(
+                "WARN", "swap_ambiguous",
+                f"the data fit as well with the robot and camera files swapped (median "
+                f"residuals {swapped.rotation_deg:.3g}° / {1000 * swapped.translation_m:.3g} mm "
+                f"instead of {base.rotation_deg:.3g}° / {1000 * base.translation_m:.3g} mm; the "
+                f"camera would be {swapped.hand_eye_distance:.3g} m from the "
+                f"{'flange' if result.mode == 'eye_in_hand' else 'robot base'}): AX = ZB fits "
+                "both readings alike, and without timestamps nothing says which stream is the "
+                "camera's — check that --robot holds the robot's poses and --camera the "
+                "camera's"))
     n_fit = int(np.sum(result.sample_used == "fit"))
     if n_fit < MIN_SAMPLES:
         reasons.append(Reason("WARN", "too_few_samples",

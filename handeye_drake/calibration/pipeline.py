@@ -53,7 +53,8 @@ from ..estimation.solvers import METHODS
 from .align import (AlignedSamples, TimeOffsetEstimate, UnobservableTimeOffset,
                                align_streams, estimate_time_offset)
 from ..estimation.consistency import (check_mode, fixed_pose_spread, implied_fixed_poses,
-                                     inverse_stack, mean_pose, pose_residuals)
+                                     inverse_stack, mean_pose, pose_residuals,
+                                     with_scaled_translations)
 from ..recorded.formats import PoseStream
 from ..estimation.selection import InconsistentMotions, RobustFit, robust_hand_eye
 from ..recorded.exports import export_texts
@@ -275,6 +276,7 @@ class CalibrationResult:
     corners: object = None          # ``corners.CornerStage`` (image inputs), else None
     intrinsics: object = None       # ``CameraIntrinsics`` the answer used (image inputs)
     fixed_tests: list = field(default_factory=list)  # ``FixedTest`` per --fix component
+    scale_test: dict | None = None  # ``camera_scale_test``: the camera translations' scale
 
     @property
     def X_hand(self) -> np.ndarray:
@@ -560,7 +562,8 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                       max_hand_eye_distance: float | None = None, alternatives=None,
                       quaternion_streams=("robot", "camera"), camera_resampler=None,
                       online: bool = False, online_step_deg: float = 10.0,
-                      camera_covariances=None, robot_accuracy=None) -> CalibrationResult:
+                      camera_covariances=None, robot_accuracy=None,
+                      camera_from_images: bool = False) -> CalibrationResult:
     """Calibrates the hand-eye transform from a robot stream (X_BE) and a camera stream (X_CT).
 
     Args:
@@ -590,6 +593,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
             systematic uncertainty (e.g. intrinsics calibrated from the same images); the spread
             of the results it gives is added to the covariance (``RESAMPLES`` draws).
         online: also replay the recording through the on-line filters (``online.replay``).
+        camera_from_images: the camera poses are detections of a target in images (not a
+            pose file or topic): the files cannot have been swapped, and the target size is
+            left to the image path's own analysis. Otherwise the scale of the camera's
+            translations is tested (``camera_scale_test``; a factor ≠ 1 by more than 5σ
+            FAILs naming it).
         camera_covariances: optional (N, 6, 6), one per camera sample: the covariance of its
             error [δθ (rad, about C's axes); δt (m)] (``vision.detection``'s ``covariance``).
             The fit then whitens each sample by its own covariance, scaled by one factor
@@ -646,7 +654,12 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
     estimate = None
     if time_offset is None:
         offset, offset_mode = 0.0, "default: none (no timestamps)"
-        if robot.has_timestamps and camera.has_timestamps:
+        if robot.has_timestamps and camera.has_timestamps and np.array_equal(
+                robot.timestamps, camera.timestamps):
+            # Stamped alike, sample by sample: paired by whoever wrote them (--time-offset
+            # auto still estimates an offset).
+            offset_mode = "default: 0 (both streams have the same timestamps)"
+        elif robot.has_timestamps and camera.has_timestamps:
             try:
                 estimate = estimate_time_offset(robot_side, camera, time_offset_range)
                 offset, offset_mode = estimate.offset, "auto (default)"
@@ -717,8 +730,11 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         # A held component stays exact: the robot's error is conditioned on it.
         fit.covariance = fit.covariance + conditioned_on_fixed(
             robot_error_covariance(fit.X_H, robot_accuracy), fit.X_H, fixed)
+    systematic_of = None if camera_resampler is None else (
+        lambda f, k, held: _systematic_covariance(camera_resampler, aligned, X_R, k, f, held,
+                                                  seed))
     fixed_tests = [fixed_component_test(X_R, X_CT, fit_idx, fit, fixed, c, given_for(aligned),
-                                        robot_accuracy) for c in fixed]
+                                        robot_accuracy, systematic_of) for c in fixed]
 
     systematic = None
     if camera_resampler is not None:
@@ -767,12 +783,15 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
                   "fixed": dict(fixed),
                   "robot_accuracy": None if robot_accuracy is None else
                   [float(v) for v in robot_accuracy],
-                  "quaternion_streams": tuple(quaternion_streams)},
+                  "quaternion_streams": tuple(quaternion_streams),
+                  "camera_from_images": bool(camera_from_images)},
         seed=int(seed), time_offset_refined=refined, warnings=warnings,
         correlation=correlation, fixed_tests=fixed_tests)
     for t in fixed_tests:
         if t.note:
             warnings.append(t.note)
+    if not camera_from_images:
+        result.scale_test = camera_scale_test(X_R, X_CT, kept, fit, fixed, correlation)
     reading = checks.reading_of(result)
     result.hypotheses = checks.try_alternatives(
         robot, camera, reading, checks.default_alternatives(robot, camera, reading)
@@ -783,6 +802,57 @@ def calibrate_streams(robot: PoseStream, camera: PoseStream, mode: str = "eye_in
         result.online = [replay(result, online_step_deg, min_rotation_deg, name)
                          for name in ESTIMATORS]
     return result
+
+
+# ------------------------------------------------------------------------- translation scale
+#: Step (relative) of the profile of the fit's cost in the camera translation scale.
+SCALE_STEP = 0.01
+
+
+def camera_scale_test(X_R, X_CT, idx, fit: Fit, fixed=None, correlation=None) -> dict | None:
+    """What the data say about the scale of the camera's translations (a wrong target size, a
+    scaled print, a detector given the wrong square size): the fit's cost (whitened residual²,
+    its noise held) profiled over a factor s on the camera translations of the samples ``idx``
+    — a parabola through s₀ and s₀ ± ``SCALE_STEP``, recentred once — gives the factor ŝ
+    that makes them fit best and its σ (2 / curvature)½, widened by the residual correlation
+    (``correlated_covariance``'s largest std factor). Returns {"factor", "std", "sigmas"
+    (|ŝ − 1| / σ)}, or None when the profile is not a minimum."""
+    idx = np.asarray(idx)
+    X_R_all, X_CT_all = np.asarray(X_R), np.asarray(X_CT)
+    X_R, X_CT = X_R_all[idx], X_CT_all[idx]
+    state = {"X_H": fit.X_H, "X_F": fit.X_F}
+
+    def cost(sc):
+        f = _ml_fit(X_R, with_scaled_translations(X_CT, sc), state["X_H"], fit.noise, idx,
+                    fixed or None, state["X_F"])
+        return f.cost
+
+    center, h = 1.0, SCALE_STEP
+    try:
+        for _ in range(2):
+            c = [cost(center - h), cost(center), cost(center + h)]
+            curvature = (c[0] + c[2] - 2.0 * c[1]) / (h * h)  # d²cost/ds²
+            if not (math.isfinite(curvature) and curvature > 0):
+                return None
+            step = -(c[2] - c[0]) / (2.0 * h) / curvature
+            center = float(np.clip(center + step, center - 0.2, center + 0.2))
+            h = min(SCALE_STEP, max(abs(step), 1e-3))
+    except ValueError:
+        return None
+    std = math.sqrt(2.0 / curvature)
+    # The residual correlation of the fit at the factor found (a wrong scale itself makes the
+    # residuals of the fit as read correlated).
+    try:
+        f = _ml_fit(X_R, with_scaled_translations(X_CT, center), state["X_H"], fit.noise, idx,
+                    fixed or None, state["X_F"])
+        if not fixed:
+            info = correlated_covariance(X_R_all, with_scaled_translations(X_CT_all, center),
+                                         idx, f)[2]
+            std *= max(1.0, max(info.get("std_factor") or [1.0]))
+    except (ValueError, np.linalg.LinAlgError):
+        if correlation and correlation.get("std_factor"):
+            std *= max(1.0, max(correlation["std_factor"]))
+    return {"factor": center, "std": std, "sigmas": abs(center - 1.0) / std}
 
 
 # ------------------------------------------------------------------------- held components
@@ -858,11 +928,12 @@ def _component_text(c, v, std=None) -> str:
     return f"{math.degrees(v):.4g}°" + ("" if std is None else f" ± {math.degrees(std):.2g}°")
 
 
-def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accuracy
-                         ) -> FixedTest:
+def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accuracy,
+                         systematic_of=None) -> FixedTest:
     """``FixedTest`` of the held component ``c``: the samples ``idx`` refitted (outliers and
-    noise re-estimated) with ``c`` free; its σ includes the residual correlation and the
-    robot's accuracy as the result's does."""
+    noise re-estimated) with ``c`` free; its σ includes the residual correlation, the robot's
+    accuracy and (``systematic_of(fit, kept, held)``, intrinsics calibrated from the same
+    images) the camera poses' systematic uncertainty, as the result's does."""
     value = float(fixed[c])
     rest = {k: v for k, v in fixed.items() if k != c}
     held = "--fix " + c + ("" if c.startswith("t") else "_deg") + "=" + (
@@ -875,6 +946,8 @@ def fixed_component_test(X_R, X_CT, idx, fit: Fit, fixed, c, given, robot_accura
         if robot_accuracy is not None:
             cov = cov + conditioned_on_fixed(robot_error_covariance(free.X_H, robot_accuracy),
                                              free.X_H, rest)
+        if systematic_of is not None:
+            cov = cov + systematic_of(free, kept, rest)
         data, std = component_value(free.X_H, cov, c)
     except ValueError:  # UnobservableError among them: the data leave c to the user
         return FixedTest(c, value)

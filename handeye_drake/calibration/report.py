@@ -112,6 +112,7 @@ def to_dict(result) -> dict:
         "task_space_sigma": task_sigmas(r.mode, fit.X_H, fit.covariance, a.X_BE),
         "fixed_components": r.settings["fixed"] or None,
         "fixed_component_tests": [t.to_dict() for t in r.fixed_tests] or None,
+        "camera_scale_test": r.scale_test,
         "robot_accuracy": None if not r.settings.get("robot_accuracy") else {
             "rotation_deg": r.settings["robot_accuracy"][0],
             "translation_m": r.settings["robot_accuracy"][1]},

@@ -1153,6 +1153,21 @@ def _numbers(node: _Node, key: str, source: str) -> np.ndarray:
     return values
 
 
+def _check_rodrigues_radians(rotvecs: np.ndarray, lines, key: str, source: str) -> None:
+    """Rodrigues vectors are in radians: their length (the rotation angle) is at most π (what
+    ``cv::Rodrigues`` writes), never beyond 2π. Vectors longer than 2π, or most of them longer
+    than π, are in degrees: refused naming the unit (read as radians they would be arbitrary
+    rotations)."""
+    norms = np.linalg.norm(rotvecs, axis=1)
+    over = norms > math.pi + 1e-6
+    if np.any(norms > 2 * math.pi) or (len(norms) >= 3 and np.mean(over) >= 0.5):
+        k = int(np.argmax(norms))
+        raise _err(source, lines[k], f"{key}: Rodrigues vectors of length up to "
+                   f"{norms[k]:.4g} ({int(over.sum())} of {len(norms)} longer than π) — they look "
+                   "like degrees; a Rodrigues vector is in radians (its length is the rotation "
+                   "angle, at most π): convert them (× π/180)")
+
+
 def parse_opencv_yaml(text, stream: str, source: str = "<yaml>",
                       camera_in_target: bool = False, translation_scale: float = 1.0,
                       max_translation: float | None = MAX_TRANSLATION,
@@ -1213,6 +1228,8 @@ def parse_opencv_yaml(text, stream: str, source: str = "<yaml>",
                                f"{t_node.value.shape[0]}×{t_node.value.shape[1]}")
                 poses[k, :3, 3] = t_node.value.reshape(3)
             if rotvecs:
+                _check_rodrigues_radians(np.array(rotvecs), [Rs[k].line for k in rotvec_index],
+                                         R_key, source)
                 poses[rotvec_index, :3, :3] = Rotation.from_rotvec(np.array(rotvecs)).as_matrix()
             lines = [R_node.line for R_node in Rs]
             invert = inverted

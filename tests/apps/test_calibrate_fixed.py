@@ -100,3 +100,33 @@ def test_a_scara_with_tz_held_has_zero_sigma_on_it_and_no_advice_to_fix_it(seed)
         # The data cannot say anything about tz here: no test, no note, no FAIL from it.
         assert r.fixed_tests[0].data_value is None
         assert r.verdict.status in ("OK", "WARN")
+
+
+# --------------------------------------------- a new user's finding: identical timestamps
+@pytest.mark.parametrize("seed", range(4))
+def test_streams_with_identical_timestamps_keep_every_sample_with_offset_zero(seed):
+    """Two files stamped 0..N alike are paired sample by sample: offset 0, no sample lost at
+    the ends (an estimated ±0.2 ms used to push one outside the robot's span)."""
+    robot, camera, X_H = _streams("eye_in_hand", seed, n=30)
+    t = np.arange(30, dtype=float)
+    r = calibrate_streams(pose_stream(robot.poses, t, "robot"),
+                          pose_stream(camera.poses, t, "camera"), robot_accuracy=ACCURACY)
+    assert r.aligned.time_offset == 0.0 and len(r.aligned.X_BE) == 30
+    assert "same timestamps" in r.time_offset_mode
+    assert r.verdict.status != "FAIL", r.verdict.reasons
+    # A fraction of a millisecond off still keeps the end samples (taken at the span's end).
+    from handeye_drake.calibration.align import align_streams
+    a = align_streams(pose_stream(robot.poses, t, "robot"),
+                      pose_stream(camera.poses, t + 2e-4 * (1 if seed % 2 else -1), "camera"))
+    assert len(a.X_BE) == 30
+
+
+def test_images_with_a_wrong_fix_fail_and_a_right_one_passes(tmp_path, capsys):
+    from tests.apps.test_calibrate import IMAGES
+    args = ["calibrate", "--images", str(IMAGES), "--robot", str(IMAGES / "robot_poses.tum"),
+            "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--intrinsics",
+            str(IMAGES / "intrinsics.yaml")]
+    assert main(args + ["--fix", "roll_deg=-2", "--out", str(tmp_path / "wrong")]) == 1
+    assert "with roll free the data give roll = -2.9" in capsys.readouterr().out
+    assert main(args + ["--fix", "roll_deg=-3", "--out", str(tmp_path / "right")]) == 0
+    assert "the data determine roll themselves" in capsys.readouterr().out

@@ -301,3 +301,32 @@ def test_filter_long_run_10k():
     assert final["asymmetry"] == 0.0  # kalman_step symmetrizes P
     assert final["min_eigenvalue"] > 0.0
     assert final["rotation_error_deg"] < 0.05 and final["translation_error"] < 1e-3
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_opencv_yaml_rodrigues_vectors_in_degrees_are_refused_naming_the_unit(tmp_path, seed):
+    """Rotation vectors written in degrees (a common slip) are named as such, with the line;
+    the same vectors in radians (length ≤ π, as cv::Rodrigues writes them) read as before."""
+    cv2 = pytest.importorskip("cv2")
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 12))
+    rvecs = [rotation_exp(rng.normal(size=3) * 0.8) for _ in range(n)]
+    rvecs = [cv2.Rodrigues(R)[0] for R in rvecs]
+    ts = [rng.normal(size=(3, 1)) * 0.2 for _ in range(n)]
+
+    def write(vectors, name):
+        path = str(tmp_path / name)
+        fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
+        for key, values in (("R_target2cam", vectors), ("t_target2cam", ts)):
+            fs.startWriteStruct(key, cv2.FileNode_SEQ)
+            for v in values:
+                fs.write("", v)
+            fs.endWriteStruct()
+        fs.release()
+        return path
+    s = read_poses(write(rvecs, "rad.yaml"), "camera")
+    np.testing.assert_allclose(s.poses[:, :3, :3], [cv2.Rodrigues(v)[0] for v in rvecs],
+                               atol=1e-12)
+    with pytest.raises(ValueError, match=r"deg\.yaml:\d+: R_target2cam: Rodrigues vectors of "
+                                         r"length up to .*look like degrees.*radians"):
+        read_poses(write([np.degrees(v) for v in rvecs], "deg.yaml"), "camera")
