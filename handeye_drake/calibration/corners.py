@@ -235,7 +235,7 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
     _scale_check(stage, data, kwargs)
     if intrinsics_source == "given":
         _intrinsics_check(stage, data, kwargs, tried if refine == "auto" else None)
-    _pixel_checks(stage)
+    _pixel_checks(stage, result.settings["max_noise"])
     _apply(result, stage, robot_accuracy)
     return stage
 
@@ -267,10 +267,9 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         if result.verdict.status == "FAIL":
             # A target size off by a large factor reads like other mistakes (millimetres) at
             # pose level; the scale that explains the poses, if any, is measured from pixels.
+            # Only a scale under which the poses pass the checks explains them.
             found = _search_scale(streams, settings)
-            if found is not None and found[1].verdict.status != "FAIL" or (
-                    found is not None and _median_translation(found[1]) < 0.5 *
-                    _median_translation(result) * found[0]):
+            if found is not None and found[1].verdict.status != "FAIL":
                 scale0, result = found
     try:
         refine_with_corners(result, streams.detections, streams.intrinsics, refine,
@@ -281,12 +280,6 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         result.warnings.append(f"corner-level fit not done ({e}): the result is the pose-level "
                                "fit")
     return result
-
-
-def _median_translation(result) -> float:
-    """Median translation residual (m) of the fit samples, in the declared target's units."""
-    used = result.sample_used == "fit"
-    return float(np.median(result.residual_m[used])) if used.any() else math.inf
 
 
 def _search_scale(streams, settings):
@@ -427,8 +420,19 @@ def hand_name_for(stage: CornerStage) -> str:
     return "X_EC" if stage.fit.pose_error_frame == "camera" else "X_BC"
 
 
-def _pixel_checks(stage: CornerStage) -> None:
+def _pixel_checks(stage: CornerStage, max_noise) -> None:
+    """The pixels against plausible noise: the corners' scatter, the per-image pose error each
+    image needs (bounded like a camera pose's noise, ``max_noise`` (deg, m) per axis), the
+    images rejected."""
     f = stage.fit
+    rot_deg, trans_m = np.degrees(np.max(f.pose_sigma[:3])), float(np.max(f.pose_sigma[3:]))
+    if rot_deg > max_noise[0] or trans_m > max_noise[1]:
+        stage.reasons.append(Reason(
+            "FAIL", "pixel_residuals",
+            f"the images do not fit one hand-eye transform: each needs its own pose error of "
+            f"{rot_deg:.3g}° / {1000 * trans_m:.3g} mm per axis (plausible: ≤ {max_noise[0]:g}° "
+            f"/ {1000 * max_noise[1]:g} mm, --max-noise); left-out images are predicted "
+            f"{stage.cv['rms_px']:.3g} px off"))
     if f.pixel_sigma > MAX_PIXEL_SIGMA:
         stage.reasons.append(Reason(
             "FAIL", "pixel_residuals",
