@@ -3,7 +3,7 @@
     arm.py           add_arm, make_control_plant, DifferentialIkDriver, EndEffectorPoseSensor
     camera.py        HandEyeCamera
     servo.py         VisualServoController
-    calibrator.py    HandEyeCalibrator
+    calibrator.py    HandEyeCalibrator, add_hand_eye_calibrator (into any diagram)
     motion_source.py PaperMotionSource
     rendered_camera.py  add_target_geometry, add_rendered_camera, mount_rendered_camera,
                         camera_config, RenderedCamera (functions: RgbdSensor + textured target)
@@ -16,7 +16,7 @@
 
 from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor, add_arm,
                   make_control_plant)
-from .calibrator import HandEyeCalibrator
+from .calibrator import HandEyeCalibrator, add_hand_eye_calibrator
 from .camera import HandEyeCamera
 from .camera_pose import HandCameraPose
 from .frame_recorder import FrameRecorder
@@ -31,5 +31,5 @@ from .trigger_sampler import CameraTriggerSampler
 __all__ = ["CameraTriggerSampler", "DifferentialIkDriver", "EndEffectorPoseSensor",
            "FrameRecorder", "HandCameraPose", "HandEyeCalibrator", "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
            "SelfCalibrationMotion", "TargetDetector", "UR5E_HOME_Q", "UR5E_URDF",
-           "VisualServoController", "add_arm", "add_rendered_camera", "add_target_geometry",
+           "VisualServoController", "add_arm", "add_hand_eye_calibrator", "add_rendered_camera", "add_target_geometry",
            "camera_config", "make_control_plant", "mount_rendered_camera"]

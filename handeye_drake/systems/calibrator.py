@@ -1,6 +1,8 @@
 """The on-line hand-eye calibrator as a discrete Drake system.
 
-Life cycle, driven by the servo controller's ``phase`` output:
+Life cycle, driven by the ``phase`` input (the servo controller's ``phase`` output in the
+closed loop; in your own diagram, any source of the motion index — a ``ConstantVectorSource``,
+a ``TrajectorySource``, your sequencer):
 
 1. While phase < M (the M self-calibration motions run), it records the synchronized robot and
    camera poses at every phase boundary ("key frames") and, for the replay, every sample.
@@ -36,7 +38,7 @@ from ..estimation.validation import as_transform, check_positive
 #: Values of the ``status`` output's first entry.
 STATUS_COLLECTING = 0.0   # self-calibration motions in progress, output = initial guess
 STATUS_FILTERING = 1.0    # two-motion solution found, on-line estimator running
-STATUS_INIT_FAILED = 2.0  # the classical solver rejected the motions; filtering from the guess
+STATUS_INIT_FAILED = 2.0  # filtering from the guess (motions rejected, or M = 0)
 
 _SAMPLE = 24  # a synchronized sample: X_BE and X_CT as pose vectors
 
@@ -56,6 +58,21 @@ class HandEyeCalibrator(LeafSystem):
         X_CT_covariance (36, optional): row-major 6×6 covariance of [δθ (rad); δt (m)] of
             X_CT_measured, used by estimators whose settings ask for it.
 
+    Phases (what drives ``phase`` and what the calibrator needs before it estimates):
+        With M = ``num_self_calibration_motions`` ≥ 2, the robot performs M rotations (the
+        self-calibration motions: ≥ 5° each, about non-parallel axes) while ``phase`` reads
+        0, 1, …, M−1, then ``phase`` ≥ M (servoing, or any further motion). The first sample
+        and the first sample of each phase ≥ k are the key frames; when the sample with
+        phase ≥ M arrives, the M motions between the M+1 key frames give the classical
+        two-motion solution and the estimator starts there (``status`` 1); if the motions do
+        not determine X (too small, parallel axes), it starts from the initial guess with a
+        wider covariance (``status`` 2). Setting ``phase`` = M from the first sample gives three
+        consecutive key frames: motions far too small — use M = 0 instead.
+        With M = 0 there are no self-calibration motions and ``phase`` may stay unconnected:
+        the estimator starts from ``X_EC_initial_guess`` at the first sample (a guess within a
+        few degrees and centimetres; ``status`` 2 says it started from a guess) and refines it
+        from every sample after.
+
     Output ports:
         X_CE_estimate (12): the paper's X (E in C), an exact rigid transform.
         X_EC_estimate (12): the camera on the hand, inv(X_CE_estimate).
@@ -70,15 +87,21 @@ class HandEyeCalibrator(LeafSystem):
     reading an output runs no Python).
     """
 
-    def __init__(self, period: float, X_CE_initial_guess, estimator,
+    def __init__(self, period: float, X_CE_initial_guess=None, estimator=None,
                  num_self_calibration_motions: int = 2, init_method: str = "daniilidis",
-                 max_self_calibration_samples: int = 0, offset: float | None = None):
+                 max_self_calibration_samples: int = 0, offset: float | None = None, *,
+                 X_EC_initial_guess=None):
         """
         Args:
             period: sample period (s), the camera's.
-            X_CE_initial_guess: used until the two-motion solution exists (4×4 rigid).
-            estimator: the estimator's settings (``estimation.configs``; sigmas set).
-            num_self_calibration_motions: M ≥ 2.
+            X_CE_initial_guess, X_EC_initial_guess: the initial guess, as the paper's X (E in C)
+                or as the camera on the hand (the outputs' convention) — exactly one (4×4
+                rigid); used until the two-motion solution exists, or as the start with M = 0.
+            estimator: the estimator's settings (``estimation.configs``). Their noise σ must be
+                set: ``TargetFilter(rotation_sigma=…, translation_sigma=…)`` (rad, m: the camera
+                pose's noise); a scenario fills them from its camera model, nothing else does.
+            num_self_calibration_motions: M ≥ 2, or 0 (no self-calibration motions: see
+                "Phases").
             init_method: classical solver of the M motions (see ``solve_ax_xb``).
             max_self_calibration_samples: size of the buffer of self-calibration samples
                 replayed (or used by an ML start-up) when the estimator starts.
@@ -88,11 +111,21 @@ class HandEyeCalibrator(LeafSystem):
         self._period = check_positive(period, "period")
         self._offset = 0.5 * self._period if offset is None else check_positive(
             offset, "offset", allow_zero=True)
-        X0 = as_transform(X_CE_initial_guess, "X_CE_initial_guess")
+        if (X_CE_initial_guess is None) == (X_EC_initial_guess is None):
+            raise ValueError("initial guess: give exactly one of X_EC_initial_guess (camera on "
+                             "the hand, the outputs' convention) and X_CE_initial_guess (its "
+                             "inverse, the paper's X)")
+        X0 = as_transform(X_CE_initial_guess, "X_CE_initial_guess") \
+            if X_CE_initial_guess is not None else \
+            inverse(as_transform(X_EC_initial_guess, "X_EC_initial_guess"))
+        if estimator is None:
+            raise ValueError("estimator: the estimator's settings are needed, e.g. "
+                             "TargetFilter(rotation_sigma=0.002, translation_sigma=0.0005) "
+                             "(the camera pose's noise, rad and m)")
         M = num_self_calibration_motions
-        if isinstance(M, bool) or not isinstance(M, (int, np.integer)) or M < 2:
+        if isinstance(M, bool) or not isinstance(M, (int, np.integer)) or M == 1 or M < 0:
             raise ValueError("num_self_calibration_motions: needs an integer ≥ 2 (two motions "
-                             f"with non-parallel axes), got {M!r}")
+                             f"with non-parallel axes), or 0 (start from the guess), got {M!r}")
         if init_method not in SOLVER_METHODS:
             raise ValueError(f"init_method: expected one of {SOLVER_METHODS}, got {init_method!r}")
         cap = max_self_calibration_samples
@@ -259,6 +292,14 @@ class HandEyeCalibrator(LeafSystem):
                 "status": np.array([mode, e.num_updates, e.num_rejected, nis], dtype=float)}
 
     def _Collect(self, context, discrete_state, sample):
+        if self._M == 0:
+            # No self-calibration motions: the estimator starts from the guess, now.
+            start = start_estimator(self._config, self._X_CE_guess, [], [], True)
+            estimator = start.estimator
+            estimator._update(*(vector_to_pose(v) for v in sample.reshape(2, 12)))
+            self._SetEstimatorState(discrete_state, estimator, STATUS_INIT_FAILED)
+            discrete_state.set_value(self._mode_index, [STATUS_INIT_FAILED])
+            return
         phase = float(self._phase_port.Eval(context)[0])
         keys = context.get_discrete_state(self._keys_index).get_value().copy()
         num_keys = int(context.get_discrete_state(self._num_keys_index).get_value()[0])
@@ -301,3 +342,44 @@ class HandEyeCalibrator(LeafSystem):
         discrete_state.set_value(self._output_indices["X_EC_two_motion"],
                                  pose_to_vector(inverse(X_CE0)))
         discrete_state.set_value(self._mode_index, [mode])
+
+
+def add_hand_eye_calibrator(builder, *, estimator, period: float, X_EC_initial_guess, X_BE,
+                            X_CT, phase=None, X_CT_valid=None, X_CT_covariance=None,
+                            num_self_calibration_motions: int | None = None,
+                            name: str = "hand_eye_calibrator", **kwargs) -> HandEyeCalibrator:
+    """Adds a ``HandEyeCalibrator`` to any ``DiagramBuilder`` and connects it — no scenario.
+
+    Args:
+        builder: the ``DiagramBuilder``.
+        estimator: the estimator's settings with their σ (e.g. ``TargetFilter(rotation_sigma=
+            0.002, translation_sigma=0.0005)``, rad and m).
+        period: the camera's sample period (s).
+        X_EC_initial_guess: the camera on the hand, 4×4.
+        X_BE, X_CT: output ports of your robot (flange E in base B, 12-vector [vec_row(R); p])
+            and of your camera (target T in camera C, same layout), sampled at the same instants.
+        phase: output port of the motion index (see the class's "Phases"); None: no
+            self-calibration motions (M = 0, the estimator starts from the guess).
+        X_CT_valid, X_CT_covariance: optional output ports (a detector's ``found`` and 6×6
+            covariance).
+        num_self_calibration_motions: M (default 2 with ``phase``, 0 without).
+        kwargs: the other arguments of ``HandEyeCalibrator``.
+
+    Returns the calibrator (its outputs: ``X_EC_estimate``, ``X_EC_std``, ``status``, …).
+    """
+    M = num_self_calibration_motions if num_self_calibration_motions is not None else (
+        2 if phase is not None else 0)
+    if M and phase is None:
+        raise ValueError(f"phase: num_self_calibration_motions = {M} needs the phase output "
+                         "port that tells which motion runs (or M = 0 to start from the guess)")
+    calibrator = builder.AddNamedSystem(name, HandEyeCalibrator(
+        period, X_EC_initial_guess=X_EC_initial_guess, estimator=estimator,
+        num_self_calibration_motions=M, **kwargs))
+    builder.Connect(X_BE, calibrator.get_X_BE_input_port())
+    builder.Connect(X_CT, calibrator.get_X_CT_input_port())
+    for port, target in ((phase, calibrator.get_phase_input_port()),
+                         (X_CT_valid, calibrator.get_X_CT_valid_input_port()),
+                         (X_CT_covariance, calibrator.get_X_CT_covariance_input_port())):
+        if port is not None:
+            builder.Connect(port, target)
+    return calibrator
