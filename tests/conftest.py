@@ -19,13 +19,21 @@ def rng():
 # The suite must leave the working tree as it found it (no file written outside tmp_path): the
 # state of `git status` before and after, compared when the session ends.
 def _tree_state(root):
+    """`git status` lines, and every path under the ignored ``out/`` (where the commands write
+    by default: a test must not leave anything there either)."""
     import subprocess
+    from pathlib import Path
     try:
         out = subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=root,
                              capture_output=True, text=True, timeout=60)
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout if out.returncode == 0 else None
+    if out.returncode != 0:
+        return None
+    default_out = Path(root) / "out"
+    extra = sorted(f"out: {p.relative_to(root)}" for p in default_out.rglob("*")) \
+        if default_out.is_dir() else []
+    return out.stdout + "".join(line + "\n" for line in extra)
 
 
 def pytest_sessionstart(session):
