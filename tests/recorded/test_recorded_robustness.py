@@ -254,8 +254,10 @@ def test_one_stream_without_timestamps(tmp_path, capsys):
     flat = " ".join(map(str, np.eye(4).reshape(-1)))
     r = write(tmp_path, "r.csv", "".join(f"{k} {flat}\n" for k in range(5)))
     c = write(tmp_path, "c.csv", (flat + "\n") * 5)
-    assert main(["calibrate", "--robot", str(r), "--camera", str(c)]) == 2
+    assert main(["calibrate", "--robot", str(r), "--camera", str(c), "--out",
+                 str(tmp_path / "o")]) == 2
     assert f"{c}: has no timestamps but {r} has" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()     # a failed run leaves no folder
 
 
 def test_mismatched_streams_explained(tmp_path, capsys):
