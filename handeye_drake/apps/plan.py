@@ -74,6 +74,17 @@ def parse_point(text: str, name: str) -> np.ndarray:
 
 
 def parse_intrinsics(text: str) -> CameraIntrinsics:
+    """``--intrinsics``: any form ``calibrate --intrinsics`` takes (an OpenCV or ROS camera_info
+    YAML, which carry the image size, or ``fx,fy,cx,cy[,k1,…]`` with the size from the image),
+    or ``fx,fy,cx,cy,W,H`` (the image size, W×H pixels, last)."""
+    from pathlib import Path
+
+    from ..vision.intrinsics import load_intrinsics
+    if Path(text).is_file() or not ("," in text):
+        try:
+            return load_intrinsics(text)
+        except ValueError as e:
+            raise ValueError(f"--intrinsics: {e}") from None
     v = _numbers(text, "--intrinsics", (6,))
     fx, fy, cx, cy, w, h = v
     if w != int(w) or h != int(h):
@@ -142,8 +153,22 @@ def _estimate_from_recording(args, fixed, mode):
     return X_CH, X_FT, X_BE, sr, st, (f"fit of {len(X_BE)} recorded samples", note)
 
 
+def _noise_arg(text: str):
+    import argparse
+    try:
+        deg, mm = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 0.1,1), got {text!r}") from None
+    if not (deg > 0 and mm > 0 and math.isfinite(deg) and math.isfinite(mm)):
+        raise argparse.ArgumentTypeError(f"expected two positive numbers, got {text!r}")
+    return deg, mm
+
+
 def run_plan(args) -> int:
     """Runs ``plan`` from parsed arguments; raises ValueError on bad input."""
+    # The noise as the estimation below reads it: σ_rot in degrees, σ_trans in metres.
+    args.rotation_sigma_deg, args.translation_sigma = (None, None) if args.noise is None else \
+        (args.noise[0], args.noise[1] / 1000.0)
     mode = args.mode.replace("-", "_")
     H = HOLDER_FRAME[mode]
     fixed = parse_fixed(args.fix) if args.fix else {}
@@ -295,15 +320,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--target", metavar="POINT",
                    help="target position in the base (on the flange, in E, for eye-to-hand), "
                         "x,y,z; needed without --camera")
-    p.add_argument("--intrinsics", metavar="fx,fy,cx,cy,W,H",
-                   help="camera intrinsics (pixels): keep only candidates with the target in "
-                        "view")
-    p.add_argument("--rotation-sigma-deg", type=float, default=None, metavar="DEG",
-                   help="camera pose rotation noise (default: from the fit with --camera, else "
-                        f"{DEFAULT_ROTATION_SIGMA_DEG})")
-    p.add_argument("--translation-sigma", type=float, default=None, metavar="METRES",
-                   help="camera pose translation noise (default: from the fit with --camera, "
-                        f"else {DEFAULT_TRANSLATION_SIGMA})")
+    p.add_argument("--intrinsics", metavar="SPEC|FILE",
+                   help="camera intrinsics, as for calibrate (an OpenCV or ROS camera_info "
+                        "YAML) or fx,fy,cx,cy,W,H (pixels): keep only candidates with the target "
+                        "in view")
+    p.add_argument("--noise", type=_noise_arg, default=None, metavar="DEG,MM",
+                   help="camera pose noise per axis, rotation (deg) and translation (mm), as "
+                        "calibrate's --max-noise and --robot-accuracy are written (default: from "
+                        f"the fit with --camera, else {DEFAULT_ROTATION_SIGMA_DEG:g},"
+                        f"{1000 * DEFAULT_TRANSLATION_SIGMA:g})")
     p.add_argument("--fix", metavar="NAME=VALUE,…",
                    help="hand-eye components known (tx,ty,tz in m or tx_mm…, roll,pitch,yaw in "
                         "rad or roll_deg…, of X_EC / X_BC): e.g. tz=0.052 for a SCARA")

@@ -264,3 +264,28 @@ def test_plan_command_errors_are_one_line(argv, message, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("handeye-drake: error: ") and err.count("\n") == 1
     assert __import__("re").search(message, err), err
+
+
+def test_plan_takes_calibrates_intrinsics_and_noise_spelling(tmp_path, capsys):
+    """The same vocabulary as calibrate: --intrinsics as an OpenCV YAML file, --noise DEG,MM."""
+    from handeye_drake.vision.intrinsics import write_intrinsics_yaml
+    C = _candidates(9, 25)
+    _tum(tmp_path / "cands.tum", C)
+    yaml = tmp_path / "camera.yaml"
+    write_intrinsics_yaml(CAMERA, yaml)
+    base = ["plan", "--candidates", str(tmp_path / "cands.tum"), "--hand-eye", _pose_arg(X_EC),
+            "--target", "0.55,0.05,0.0", "--n", "3"]
+    assert cli_main([*base, "--intrinsics", str(yaml), "--noise", "0.1,1",
+                     "--out", str(tmp_path / "a")]) == 0
+    assert cli_main([*base, "--intrinsics",
+                     f"{CAMERA.alpha_u},{CAMERA.alpha_v},{CAMERA.u0},{CAMERA.v0},"
+                     f"{CAMERA.width},{CAMERA.height}", "--noise", "0.1,1",
+                     "--out", str(tmp_path / "b")]) == 0
+    a = json.loads((tmp_path / "a" / "plan.json").read_text())
+    b = json.loads((tmp_path / "b" / "plan.json").read_text())
+    assert a["next_poses"] == b["next_poses"]
+    assert a["rotation_sigma_rad"] == pytest.approx(math.radians(0.1))
+    assert a["translation_sigma_m"] == pytest.approx(0.001)
+    capsys.readouterr()
+    assert cli_main([*base, "--noise", "0.1", "--out", str(tmp_path / "c")]) == 2
+    assert "--noise: expected DEG,MM" in capsys.readouterr().err
