@@ -59,7 +59,9 @@ def _recording(mode, seed=2, n=40):
 def _calibrated(mode):
     robot, camera, X_BE = _recording(mode)
     r = calibrate_streams(robot, camera, mode=mode)
-    assert r.verdict.status == "OK", r.verdict.reasons
+    # Without timestamps nothing says which file is the camera's: at most that WARN.
+    assert [x.code for x in r.verdict.reasons if x.code != "swap_ambiguous"] == [], \
+        r.verdict.reasons
     return r, X_BE
 
 
