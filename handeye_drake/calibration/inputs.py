@@ -190,16 +190,21 @@ def _for_detection(image: np.ndarray) -> np.ndarray:
 
 def _read_image(path: Path, max_bytes: int = 100_000_000):
     """(image, reason): the image as RGB/grey uint8, or None and why not."""
-    import cv2
     try:
         if path.stat().st_size > max_bytes:
             return None, f"larger than {max_bytes // 1_000_000} MB"
         data = np.fromfile(str(path), dtype=np.uint8)
     except OSError as e:
         return None, f"cannot read ({e.strerror or e})"
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if len(data) else None
+    from ..vision.image_files import MAX_IMAGE_PIXELS, decode_quietly, image_size
+    size = image_size(data[:1 << 16].tobytes())
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        return None, (f"{size[0]}×{size[1]} pixels: more than {MAX_IMAGE_PIXELS / 1e6:g} "
+                      "megapixels, not decoded")
+    image, said = decode_quietly(data) if len(data) else (None, "")
     if image is None:
-        return None, "not an image, or a truncated one (OpenCV cannot decode it)"
+        return None, ("not an image, or a truncated one (OpenCV cannot decode it"
+                      + (f": {said}" if said else "") + ")")
     return _for_detection(image), ""
 
 

@@ -399,7 +399,7 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
     """
     if msgtype == COMPRESSED_IMAGE_TYPE:
         try:
-            import cv2
+            import cv2  # noqa: F401  (the decoder below needs it)
         except ImportError:
             raise ValueError(f"{where}: decoding sensor_msgs/CompressedImage needs OpenCV (pip "
                              "install opencv-python-headless)") from None
@@ -407,10 +407,16 @@ def decode_image(msg, msgtype: str, where: str) -> np.ndarray:
             raise UnsupportedEncoding(f"{where}: unsupported compressed format {msg.format!r} "
                                       "(a depth image); expected a png or jpeg colour or grey "
                                       "image")
-        img = cv2.imdecode(np.frombuffer(bytes(msg.data), dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        from ..vision.image_files import MAX_IMAGE_PIXELS, decode_quietly, image_size
+        data = np.frombuffer(bytes(msg.data), dtype=np.uint8)
+        size = image_size(data[:1 << 16].tobytes())
+        if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+            raise ValueError(f"{where}: the compressed image is {size[0]}×{size[1]} pixels, more "
+                             f"than {MAX_IMAGE_PIXELS / 1e6:g} megapixels; not decoded")
+        img, said = decode_quietly(data)
         if img is None:
             raise ValueError(f"{where}: cannot decode the compressed image (format "
-                             f"{msg.format!r})")
+                             f"{msg.format!r}" + (f": {said}" if said else "") + ")")
         return img[:, :, :3].copy() if img.ndim == 3 and img.shape[2] == 4 else img
     enc = str(msg.encoding)
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
