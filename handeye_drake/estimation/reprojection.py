@@ -361,7 +361,7 @@ def _image_systems(data, J_g, J_e, res, e, w, inv_prior, starts):
     K = data.num_images
     n, _, G = J_g.shape
     counts = np.bincount(data.image, minlength=K)
-    rows = max(2 * int(counts.max()), G) + 6
+    rows = max(2 * int(counts.max()), G + 1) + 6
     A = np.zeros((K, rows, 6 + G))
     b = np.zeros((K, rows))
     pos = np.arange(n) - starts[data.image]
@@ -402,8 +402,9 @@ def _solve_gn(data, st, S_i, free_scale, v0, sigma_px, pose_sigma, weights, fram
         r, J_g, J_e = _linearize(data, st, S_i, free_scale, True, frame)
         A, b = _image_systems(data, J_g, J_e, r, st.e, w, inv_prior, starts)
         G = J_g.shape[2]
-        Q, R = np.linalg.qr(A)                          # (K, rows, 6+G), (K, 6+G, 6+G)
-        c = np.einsum("kri,kr->ki", Q, b)
+        # R of [A b] holds R of A and Qᵀb in its last column (no Q formed).
+        R_aug = np.linalg.qr(np.concatenate([A, b[..., None]], axis=2), mode="r")
+        R, c = R_aug[:, :6 + G, :6 + G], R_aug[:, :6 + G, 6 + G]
         R_ee, R_eg, R_gg = R[:, :6, :6], R[:, :6, 6:], R[:, 6:, 6:]
         root = R_gg.reshape(-1, G)
         rhs = -c[:, 6:].reshape(-1)
