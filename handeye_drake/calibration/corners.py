@@ -209,7 +209,7 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         best = min(o["cv_rms_px"] for o in models.values() if o["cv_rms_px"] is not None)
         why = (f"auto: the smallest error predicting left-out images ({cv['rms_px']:.3f} px)"
                if cv["rms_px"] <= best * (1 + 1e-12) else
-               f"auto: within 1 % of the best left-out prediction ({best:.3f} px) with fewer "
+               f"auto: within 4 % of the best left-out prediction ({best:.3f} px) with fewer "
                "parameters")
     else:
         chosen = refine

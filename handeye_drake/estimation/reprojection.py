@@ -660,8 +660,10 @@ def _predictive_chi2(fit: CornerFit, one: CornerData, free_scale: bool) -> tuple
 #: Largest number of images cross-validated leave-one-out (more: 10-fold).
 LOO_MAX_IMAGES = 40
 #: ``select_intrinsics_model`` keeps a simpler model whose cross-validated error is within this
-#: factor of the best one's.
-SIMPLER_WITHIN = 1.01
+#: factor of the best one's: more parameters must predict left-out images more than 4 % better.
+#: (Measured on rendered images: refining k1, k2 that were given exactly gains 3–4 % in pixels by
+#: absorbing interpolation artifacts, and doubles the hand-eye error.)
+SIMPLER_WITHIN = 1.04
 
 
 def select_intrinsics_model(data: CornerData, X_H0, X_F0, intrinsics0, models=INTRINSICS_MODELS,
