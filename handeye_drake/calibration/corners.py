@@ -260,16 +260,17 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         result = calibrate_streams(streams.robot, streams.camera, **settings)
     except ValueError:
         found = _search_scale(streams, settings)
-        if found is None:
+        if found is None or not _explained(found[1]):
             raise
         scale0, result = found
     else:
         if result.verdict.status == "FAIL":
             # A target size off by a large factor reads like other mistakes (millimetres) at
             # pose level; the scale that explains the poses, if any, is measured from pixels.
-            # Only a scale under which the poses pass the checks explains them.
+            # Only a scale under which the poses pass the checks explains them (the scale's own
+            # remainder aside: the pixels measure it exactly).
             found = _search_scale(streams, settings)
-            if found is not None and found[1].verdict.status != "FAIL":
+            if found is not None and _explained(found[1]):
                 scale0, result = found
     try:
         refine_with_corners(result, streams.detections, streams.intrinsics, refine,
@@ -280,6 +281,11 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         result.warnings.append(f"corner-level fit not done ({e}): the result is the pose-level "
                                "fit")
     return result
+
+
+def _explained(result) -> bool:
+    """The poses pass the checks, but for their own remaining scale (the pixels measure it)."""
+    return all(r.code == "camera_scale" for r in result.verdict.reasons if r.level == "FAIL")
 
 
 def _search_scale(streams, settings):
@@ -293,20 +299,39 @@ def _search_scale(streams, settings):
     mode = settings.get("mode", "eye_in_hand")
     offset = settings.get("time_offset")
     offset = offset if isinstance(offset, (int, float)) else 0.0
-    best = None
-    for c in SCALE_SEARCH:
+    def cost(c):
         scaled = dataclasses.replace(streams.camera, poses=with_scaled_translations(
             streams.camera.poses, float(c)))
         try:
-            cost = _quick_fit(streams.robot, scaled, mode, offset)[1]
+            value = _quick_fit(streams.robot, scaled, mode, offset)[1]
         except ValueError:
-            continue
-        if np.isfinite(cost) and (best is None or cost < best[0]):
-            best = (cost, float(c), scaled)
-    if best is None or abs(math.log(best[1])) < math.log(1.5):
+            return math.inf, scaled
+        return (value if np.isfinite(value) else math.inf), scaled
+
+    costs = [cost(c)[0] for c in SCALE_SEARCH]
+    k = int(np.argmin(costs))
+    if not np.isfinite(costs[k]):
+        return None
+    # Golden section on log c between the grid neighbours of the best point.
+    lo = math.log(SCALE_SEARCH[max(k - 1, 0)])
+    hi = math.log(SCALE_SEARCH[min(k + 1, len(SCALE_SEARCH) - 1)])
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    f1, f2 = cost(math.exp(x1))[0], cost(math.exp(x2))[0]
+    for _ in range(16):
+        if f1 < f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = cost(math.exp(x1))[0]
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = cost(math.exp(x2))[0]
+    c = math.exp(0.5 * (lo + hi))
+    if abs(math.log(c)) < math.log(1.5):
         return None
     try:
-        return best[1], calibrate_streams(streams.robot, best[2], **settings)
+        return c, calibrate_streams(streams.robot, cost(c)[1], **settings)
     except ValueError:
         return None
 
