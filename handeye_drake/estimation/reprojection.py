@@ -376,7 +376,7 @@ def _image_systems(data, J_g, J_e, res, e, w, inv_prior, starts):
 
 
 def _solve_gn(data, st, S_i, free_scale, v0, sigma_px, pose_sigma, weights, frame,
-              max_iter=30, tol=1e-10):
+              max_iter=30, tol=1e-10, final=True):
     """Levenberg–Marquardt on the whitened corner residuals plus the e_k prior, with the e_k
     eliminated per image in square-root form: a QR of each image's system, whose trailing block
     is the square root of the globals' information with e_k eliminated (forming
@@ -432,15 +432,27 @@ def _solve_gn(data, st, S_i, free_scale, v0, sigma_px, pose_sigma, weights, fram
         small = small + 1 if decrease <= tol * max(cost, 1.0) else 0
         if small >= 2 or lam > 1e6:
             break
+    if not final:
+        # The last linearization (one step before the solution): enough for the noise
+        # levels' EM step; the covariance is computed at the solution (``final``).
+        R_ee_inv = np.linalg.inv(R_ee)
+        return st, it, root, cost, R_ee_inv @ np.swapaxes(R_ee_inv, 1, 2), r, J_e
+    root, P_e, r, J_e = _at_solution(data, st, S_i, free_scale, w, inv_prior, frame)
+    return st, it, root, cost, P_e, r, J_e
+
+
+def _at_solution(data, st, S_i, free_scale, w, inv_prior, frame):
+    """(square root of the globals' information, posterior covariances of the e_k, residuals,
+    J_e) at ``st``."""
+    starts = np.searchsorted(data.image, np.arange(data.num_images))
     r, J_g, J_e = _linearize(data, st, S_i, free_scale, True, frame)
-    A, b = _image_systems(data, J_g, J_e, r, st.e, w, inv_prior, starts)
+    A, _ = _image_systems(data, J_g, J_e, r, st.e, w, inv_prior, starts)
     R = np.linalg.qr(A, mode="r")
     G = J_g.shape[2]
     root = R[:, 6:, 6:].reshape(-1, G)
     # Posterior covariance of each e_k given the globals: (R_eeᵀ R_ee)⁻¹.
     R_ee_inv = np.linalg.inv(R[:, :6, :6])
-    P_e = R_ee_inv @ np.swapaxes(R_ee_inv, 1, 2)
-    return st, it, root, cost, P_e, r, J_e
+    return root, R_ee_inv @ np.swapaxes(R_ee_inv, 1, 2), r, J_e
 
 
 def _covariance(root: np.ndarray) -> np.ndarray:
@@ -515,7 +527,8 @@ def fit_corners(data: CornerData, X_H0, X_F0, intrinsics0, model: str = "none",
             # a few warm-started iterations follow them.
             st, it, H_s, cost, P_e, r, J_e = _solve_gn(data, st, S_i, free_scale, v0,
                                                        sigma, ps, weights, frame,
-                                                       max_iter=30 if em == 0 else 3)
+                                                       max_iter=30 if em == 0 else 3,
+                                                       final=False)
             total_it += it
             if not estimate_noise:
                 break
@@ -557,6 +570,8 @@ def fit_corners(data: CornerData, X_H0, X_F0, intrinsics0, model: str = "none",
             break
         corner_ok, image_ok = new_corner, new_image
     weights = (corner_ok & image_ok[data.image]).astype(float)
+    # The information at the solution, with the final noise levels.
+    H_s = _at_solution(data, st, S_i, free_scale, weights / sigma ** 2, 1.0 / ps ** 2, frame)[0]
     cov_g = _covariance(H_s)
     m = S_i.shape[1]
     cov_i = S_i @ cov_g[12:12 + m, 12:12 + m] @ S_i.T
