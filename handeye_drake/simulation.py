@@ -3,12 +3,17 @@
     ┌──────────┐ desired_state ┌───────┐ body_poses ┌────────────┐ X_WE ┌────────┐
     │ diff_ik  │──────────────▶│ plant │───────────▶│ ee_sensor  │─────▶│ camera │◀─ noise
     └──────────┘               └───────┘            └────────────┘      └────────┘
-         ▲ V_WE_E_command                                │ X_BE            │ features, visible,
+         ▲ X_BE_desired                                  │ X_BE            │ features, visible,
     ┌────┴──────┐◀────────────────────────────────────────┼─────────────────┘ X_CT_measured
     │ servo     │   phase ┌────────────┐ X_BE  ┌──────────▼──────────┐
     │ (IBVS)    │────────▶│ calibrator │◀──────│ robot_pose_sampler  │ (ZeroOrderHold, camera clock)
     └───────────┘◀────────└────────────┘       └─────────────────────┘
           X_CE_estimate (the feedback of the design)
+
+The arm's driver (``scenario.arm.driver``): with ``!PoseCommand`` (default) ``diff_ik`` is Drake's
+C++ ``DifferentialInverseKinematicsIntegrator`` tracking the servo's ``X_BE_desired``, followed by
+a ``StateInterpolatorWithDiscreteDerivative`` (``desired_state``); with ``!TwistCommand`` it is
+the Python ``DifferentialIkDriver`` taking the servo's ``V_WE_E_command``.
 
 With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
 SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
@@ -42,11 +47,19 @@ from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_p
 from .scenario import (
     RENDERED_PIXEL_SIGMA,
     RenderedImages,
+    TwistCommand,
     Scenario,
     So3PoseNoise,
     transform_matrix,
 )
-from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
+from .systems.arm import (
+    DifferentialIkDriver,
+    EndEffectorPoseSensor,
+    PoseTrackingDriver,
+    add_arm,
+    add_pose_tracking_driver,
+    make_control_plant,
+)
 from .systems.calibrator import (
     STATUS_COLLECTING,
     STATUS_FILTERING,
@@ -147,7 +160,7 @@ class ClosedLoop:
     plant: object
     scene_graph: object
     model_instance: object
-    driver: DifferentialIkDriver
+    driver: PoseTrackingDriver | DifferentialIkDriver
     ee_sensor: EndEffectorPoseSensor
     camera: HandEyeCamera
     servo: VisualServoController
@@ -160,14 +173,16 @@ class ClosedLoop:
 class _Arm:
     handles: object
     control_plant: object
-    driver: DifferentialIkDriver
+    driver: PoseTrackingDriver | DifferentialIkDriver
     ee_sensor: EndEffectorPoseSensor
     q0: np.ndarray
+    X_BE0: np.ndarray  # the start pose of E in B (m)
 
 
 def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
-    """The arm's MultibodyPlant (``scenario.plant_config``), its differential-IK driver (taking
-    the servo's twist) and the end-effector pose sensor."""
+    """The arm's MultibodyPlant (``scenario.plant_config``), its driver (``scenario.arm.driver``:
+    Drake's differential-IK integrator tracking a commanded pose, or our differential-IK driver
+    taking a twist; three steps per camera period) and the end-effector pose sensor."""
     a = scenario.arm
     X_WB = transform_matrix(a.X_WB, "arm.X_WB")
     q0 = np.radians(a.q0_deg)
@@ -178,15 +193,25 @@ def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
                          f"got {len(q0)}")
     handles = add_arm(builder, plant_config=scenario.plant_config, urdf=urdf,
                       base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
-    driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
-        control_plant, a.ee_frame, scenario.period / 3.0, q0))
-    builder.Connect(driver.get_desired_state_output_port(),
-                    handles.plant.get_desired_state_input_port(handles.model_instance))
+    time_step = scenario.period / 3.0
+    if isinstance(a.driver, TwistCommand):
+        driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
+            control_plant, a.ee_frame, time_step, q0, velocity_scale=a.driver.velocity_scale))
+        builder.Connect(driver.get_desired_state_output_port(),
+                        handles.plant.get_desired_state_input_port(handles.model_instance))
+    else:
+        driver = add_pose_tracking_driver(builder, handles, control_plant, time_step,
+                                          velocity_scale=a.driver.velocity_scale)
+    context = control_plant.CreateDefaultContext()
+    control_plant.SetPositions(context, q0)
+    X_BE0 = control_plant.CalcRelativeTransform(
+        context, control_plant.GetFrameByName(a.base_frame),
+        control_plant.GetFrameByName(a.ee_frame)).GetAsMatrix4()
     ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
         handles.plant, a.base_frame, a.ee_frame))
     builder.Connect(handles.plant.get_body_poses_output_port(),
                     ee_sensor.get_body_poses_input_port())
-    return _Arm(handles, control_plant, driver, ee_sensor, q0)
+    return _Arm(handles, control_plant, driver, ee_sensor, q0, X_BE0)
 
 
 def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true):
@@ -377,17 +402,23 @@ def _detector_results(scenario: Scenario, loop, logs: dict, context) -> dict:
 def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
               camera) -> VisualServoController:
     """The IBVS controller (with its self-calibration prelude), fed by the camera's features
-    and commanding the arm's driver."""
+    and commanding the arm's driver: a pose (integrated from the arm's start pose) or a
+    twist."""
     servo = builder.AddNamedSystem("servo", VisualServoController(
         intrinsics=intrinsics_of(scenario), p_TQ=target_points_T(scenario),
         desired_features=desired_features(scenario), gain=scenario.servo.gain,
         period=scenario.period, self_calibration_motions=self_calibration_motions(scenario),
         max_angular_speed=scenario.servo.max_angular_speed,
-        max_linear_speed=scenario.servo.max_linear_speed))
+        max_linear_speed=scenario.servo.max_linear_speed, X_BE_initial=arm.X_BE0))
     builder.Connect(camera.get_features_output_port(), servo.get_features_input_port())
     builder.Connect(camera.get_visible_output_port(), servo.get_visible_input_port())
     builder.Connect(camera.get_X_CT_output_port(), servo.get_X_CT_input_port())
-    builder.Connect(servo.get_command_output_port(), arm.driver.get_V_WE_E_command_input_port())
+    if isinstance(arm.driver, PoseTrackingDriver):
+        builder.Connect(servo.get_X_BE_desired_output_port(),
+                        arm.driver.X_BE_desired_input_port())
+    else:
+        builder.Connect(servo.get_command_output_port(),
+                        arm.driver.get_V_WE_E_command_input_port())
     return servo
 
 
@@ -476,9 +507,10 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             "visible": camera.get_visible_output_port(),
             "X_WC": camera.get_X_WC_output_port(),
             "V_WE_E_command": servo.get_command_output_port(),
-            "ik_status": arm.driver.get_status_output_port(),
             "X_BE_sampled": sampler.get_output_port(),
             "X_CT_measured": camera.get_X_CT_output_port(),
+            **({"ik_status": arm.driver.get_status_output_port()}
+               if isinstance(arm.driver, DifferentialIkDriver) else {}),
         }.items():
             logger = LogVectorOutput(port, builder, scenario.period)
             logger.set_name(f"log_{name}")
@@ -540,7 +572,9 @@ class ScenarioResult:
     calibrator_status: np.ndarray     # (K, 4): [mode, accepted, rejected, last NIS]
     X_EC_std: np.ndarray              # (K, 6): rotation (deg) and translation std of X_EC
     servo_status: np.ndarray
-    ik_status: np.ndarray
+    #: (K,) the ``!TwistCommand`` driver's DifferentialInverseKinematicsStatus per camera sample
+    #: (0 solution found); None with ``!PoseCommand`` (Drake's integrator logs a warning instead).
+    ik_status: np.ndarray | None
     X_WC: np.ndarray                  # (K, 4, 4) true camera poses
     X_BE_samples: np.ndarray          # (K, 4, 4) robot poses sampled at the camera trigger
     X_CT_samples: np.ndarray          # (K, 4, 4) the matching measured target poses
@@ -684,7 +718,7 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         desired_features=desired_features(scenario), phase=phase,
         calibrator_status=data["calibrator_status"], X_EC_std=data["X_EC_std"],
         servo_status=data["servo_status"][:, 0],
-        ik_status=data["ik_status"][:, 0],
+        ik_status=data["ik_status"][:, 0] if "ik_status" in data else None,
         X_WC=np.array([vector_to_pose(v) for v in data["X_WC"]]),
         X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
         X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),

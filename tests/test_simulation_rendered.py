@@ -201,13 +201,13 @@ camera:
     assert np.all(r.detector_found[servoing] == 0.0)
     assert np.all(r.servo_status[servoing] == STATUS_TOO_FEW_VISIBLE)
     assert np.all(r.V_WE_E_command[servoing] == 0.0)
-    # The camera comes to rest where the last self-calibration twist left it: the arm catches
-    # up its tracking lag with steps that only shrink (no jump; measured 0.26° and 0.18 mm in
-    # all), then stays still.
+    # The camera comes to rest where the last self-calibration motion left it: the arm catches
+    # up its tracking lag with steps that only shrink (no jump; measured 0.53° and 0.13 mm in
+    # all with the pose command, 0.26° and 0.18 mm with the twist driver), then stays still.
     X_WC = r.X_WC[servoing]
     steps_deg = [np.degrees(np.linalg.norm(rotation_log(b[:3, :3] @ a[:3, :3].T)))
                  for a, b in zip(X_WC[:-1], X_WC[1:])]
-    assert np.all(np.diff(steps_deg[:6]) < 0) and sum(steps_deg) < 0.4
+    assert np.all(np.diff(steps_deg[:6]) < 0) and sum(steps_deg) < 0.7
     assert np.linalg.norm(X_WC[-1][:3, 3] - X_WC[0][:3, 3]) < 0.3e-3
     assert max(steps_deg[-8:]) < 1e-6
     assert r.calibrator_mode == STATUS_COLLECTING

@@ -9,10 +9,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import twist_transform, vector_to_pose
-from ..estimation.validation import as_matrix, check_positive, rotation_defect
+from ..estimation.se3 import pose_to_vector, twist_transform, vector_to_pose
+from ..estimation.validation import as_matrix, as_transform, check_positive, rotation_defect
 from ..vision.camera_model import (
     MIN_DEPTH,
     CameraIntrinsics,
@@ -66,6 +68,15 @@ class VisualServoController(LeafSystem):
     e_k − λ·period·e_{k−2}, stable for λ·period < 0.618 (keep it ≲ 0.2 for a smooth decay). At
     t = 0 no image exists yet, so the initialization sample reports STATUS_TOO_FEW_VISIBLE.
 
+    The commanded pose: the servo also integrates its held twist into a desired end-effector
+    pose, X_BE_desired(t) = X_k · exp(V_k (t − t_k)) on (t_k, t_{k+1}] (the SE(3) exponential
+    of the body twist, E's motion under a constant twist expressed in E), with X_k the desired
+    pose reached at the end of the previous period — starting at ``X_BE_initial`` (the robot's
+    start pose; B is the base frame of whatever tracks it). A servo-to-pose robot interface
+    (e.g. Drake's ``DifferentialInverseKinematicsIntegrator`` with frame A = B) tracks it; the
+    twist output serves a velocity interface. The desired pose does not wait for the arm: a
+    motion the arm cannot follow (joint limits) is still commanded.
+
     Input ports:
         features (2N): current pixels [u0, v0, u1, v1, …] (px).
         visible (N): 1.0 for visible points (> 0.5 counts as visible).
@@ -79,12 +90,19 @@ class VisualServoController(LeafSystem):
         feature_error (1): RMS over usable points of ‖s_i − s*_i‖ (px); held when no point is
             usable.
         status (1): STATUS_OK (0), STATUS_TOO_FEW_VISIBLE (1) or STATUS_INVALID_ESTIMATE (2).
+        X_BE_desired (abstract RigidTransform): the commanded pose of E in B (m), a function of
+            time and the state (computed when read: once per step of the pose tracker).
+
+    Discrete state: one group per vector output, and the desired pose X_k ([vec_row(R); p])
+    with its time t_k.
     """
 
     def __init__(self, intrinsics: CameraIntrinsics, p_TQ, desired_features, gain: float,
                  period: float, self_calibration_motions=(), max_angular_speed: float = 1.0,
-                 max_linear_speed: float = 0.5, min_visible: int = 3):
+                 max_linear_speed: float = 0.5, min_visible: int = 3, X_BE_initial=None):
         LeafSystem.__init__(self)
+        X_BE0 = np.eye(4) if X_BE_initial is None else as_transform(X_BE_initial,
+                                                                     "X_BE_initial")
         if not isinstance(intrinsics, CameraIntrinsics):
             raise ValueError(f"intrinsics: expected a CameraIntrinsics, got "
                              f"{type(intrinsics).__name__}")
@@ -146,6 +164,8 @@ class VisualServoController(LeafSystem):
         self._phase_index = self.DeclareDiscreteState(1)
         self._error_index = self.DeclareDiscreteState(1)
         self._status_index = self.DeclareDiscreteState(1)
+        self._pose_index = self.DeclareDiscreteState(pose_to_vector(X_BE0))  # X_k
+        self._pose_time_index = self.DeclareDiscreteState(1)                 # t_k
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateCommand)
         self.DeclareInitializationDiscreteUpdateEvent(self._UpdateCommand)
 
@@ -153,7 +173,12 @@ class VisualServoController(LeafSystem):
         self._phase_port = self.DeclareStateOutputPort("phase", self._phase_index)
         self._error_port = self.DeclareStateOutputPort("feature_error", self._error_index)
         self._status_port = self.DeclareStateOutputPort("status", self._status_index)
-
+        self._X_BE_desired_port = self.DeclareAbstractOutputPort(
+            "X_BE_desired", lambda: AbstractValue.Make(RigidTransform()), self._CalcDesiredPose,
+            prerequisites_of_calc={self.time_ticket(),
+                                   self.discrete_state_ticket(self._command_index),
+                                   self.discrete_state_ticket(self._pose_index),
+                                   self.discrete_state_ticket(self._pose_time_index)})
 
     # Ports, as members so users can wire them by handle.
     def get_features_input_port(self):
@@ -179,6 +204,15 @@ class VisualServoController(LeafSystem):
 
     def get_status_output_port(self):
         return self._status_port
+
+    def get_X_BE_desired_output_port(self):
+        return self._X_BE_desired_port
+
+    def SetDesiredPose(self, context, X_BE) -> None:
+        """Restarts the commanded pose at X_BE (4×4 or RigidTransform, E in B) at the context's
+        time, e.g. the robot's pose when the run starts."""
+        context.SetDiscreteState(self._pose_index, pose_to_vector(as_transform(X_BE, "X_BE")))
+        context.SetDiscreteState(self._pose_time_index, [context.get_time()])
 
     @staticmethod
     def _check_speed_limit(value, name):
@@ -239,6 +273,25 @@ class VisualServoController(LeafSystem):
         discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
         discrete_state.get_mutable_vector(self._error_index).SetFromVector([feature_error])
         discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
+        # The desired pose reached at the end of the elapsed command period becomes X_k.
+        t = context.get_time()
+        R, p = self._DesiredPose(context, t)
+        discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p]))
+        discrete_state.set_value(self._pose_time_index, [t])
+
+    def _DesiredPose(self, context, t):
+        """(R, p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist V_k."""
+        x = context.get_discrete_state(self._pose_index).get_value()
+        s = t - context.get_discrete_state(self._pose_time_index).get_value()[0]
+        wx, wy, wz, vx, vy, vz = context.get_discrete_state(self._command_index).get_value()
+        R0 = x[:9].reshape(3, 3)
+        if s == 0.0 or not (wx or wy or wz or vx or vy or vz):
+            return R0.copy(), x[9:].copy()
+        return _twist_motion(R0, x[9:], wx * s, wy * s, wz * s, vx * s, vy * s, vz * s)
+
+    def _CalcDesiredPose(self, context, output) -> None:
+        R, p = self._DesiredPose(context, context.get_time())
+        output.set_value(RigidTransform(RotationMatrix(R), p))
 
     def _ServoTwist(self, uv, Z, X_CE, usable) -> np.ndarray:
         """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` without
@@ -268,3 +321,25 @@ class VisualServoController(LeafSystem):
             raise ValueError(f"{port.get_name()} input of {self.get_name()!r}: contains NaN or "
                              f"infinite values at t = {context.get_time()}")
         return value
+
+
+def _twist_motion(R0, p0, ax, ay, az, bx, by, bz):
+    """(R, p) = X0 · exp([a; b]): a pose X0 = (R0, p0) moved by the body twist [ω; v] held for
+    s seconds, a = ω s (rad) and b = v s (m) expressed in the moving frame — the SE(3)
+    exponential, R = R0 exp([a]×), p = p0 + R0 J(a) b with J the left Jacobian of SO(3).
+    The rotation is re-orthonormalized (one Newton step, R ← R (3I − RᵀR) / 2) so a pose
+    integrated over many periods stays a rotation to rounding."""
+    th2 = ax * ax + ay * ay + az * az
+    if th2 < 1e-8:  # Taylor series: the terms dropped are below 1e-17
+        A, B, C = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
+    else:
+        th = math.sqrt(th2)
+        A, B = math.sin(th) / th, (1.0 - math.cos(th)) / th2
+        C = (1.0 - A) / th2
+    K = np.array([[0.0, -az, ay], [az, 0.0, -ax], [-ay, ax, 0.0]])
+    K2 = K @ K
+    b = np.array([bx, by, bz])
+    R = R0 @ (np.eye(3) + A * K + B * K2)
+    R = R @ (1.5 * np.eye(3) - 0.5 * (R.T @ R))
+    p = p0 + R0 @ (b + B * (K @ b) + C * (K2 @ b))
+    return R, p
