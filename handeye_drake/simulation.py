@@ -1,14 +1,17 @@
 """The closed loop (docs/method.md §7–§8) as one Drake Diagram, and a runner for it.
 
-    ┌──────────┐ desired_state ┌───────┐ body_poses ┌────────────┐ X_WE ┌────────┐
-    │ diff_ik  │──────────────▶│ plant │───────────▶│ ee_sensor  │─────▶│ camera │◀─ noise
-    └──────────┘               └───────┘            └────────────┘      └────────┘
-         ▲ X_BE_desired                                  │ X_BE            │ features, visible,
-    ┌────┴──────┐◀────────────────────────────────────────┼─────────────────┘ X_CT_measured
-    │ servo     │   phase ┌────────────┐ X_BE  ┌──────────▼──────────┐
-    │ (IBVS)    │────────▶│ calibrator │◀──────│ robot_pose_sampler  │ (ZeroOrderHold, camera clock)
-    └───────────┘◀────────└────────────┘       └─────────────────────┘
+    ┌──────────┐ desired_state ┌───────┐ body_poses              ┌────────┐
+    │ diff_ik  │──────────────▶│ plant │────────────────────────▶│ camera │◀─ noise
+    └──────────┘               └───────┘                         └────────┘
+         ▲ X_BE_desired                        X_BE (at the trigger) │    │ features, visible,
+    ┌────┴──────┐◀───────────────────────────────────────────────────┼────┘ X_CT_measured
+    │ servo     │   phase ┌────────────┐◀──────────────────────────────┘
+    │ (IBVS)    │────────▶│ calibrator │
+    └───────────┘◀────────└────────────┘
           X_CE_estimate (the feedback of the design)
+
+The point-feature camera reads the end-effector pose from the plant's body poses and holds the
+robot pose X_BE of its trigger instant for the calibrator (one Python system samples both).
 
 The arm's driver (``scenario.arm.driver``): with ``!PoseCommand`` (default) ``diff_ik`` is Drake's
 C++ ``DifferentialInverseKinematicsIntegrator`` tracking the servo's ``X_BE_desired``, followed by
@@ -18,9 +21,9 @@ the Python ``DifferentialIkDriver`` taking the servo's ``V_WE_E_command``.
 With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
 SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
 visible, X_CT_measured, and ``found`` → the calibrator's ``X_CT_valid``, its covariance →
-``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``),
-and the robot pose is sampled by a ``CameraTriggerSampler``, in the same update phase as the
-image.
+``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``, fed by an
+``EndEffectorPoseSensor``), and the robot pose is sampled by a ``CameraTriggerSampler``, in the
+same update phase as the image.
 
 ``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
 simulates it and returns a ``ScenarioResult``.
@@ -39,7 +42,6 @@ from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
     RandomSource,
-    ZeroOrderHold,
 )
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
@@ -161,7 +163,7 @@ class ClosedLoop:
     scene_graph: object
     model_instance: object
     driver: PoseTrackingDriver | DifferentialIkDriver
-    ee_sensor: EndEffectorPoseSensor
+    ee_sensor: EndEffectorPoseSensor | None  # only when something reads it (rendered, Meshcat)
     camera: HandEyeCamera
     servo: VisualServoController
     calibrator: HandEyeCalibrator
@@ -174,15 +176,27 @@ class _Arm:
     handles: object
     control_plant: object
     driver: PoseTrackingDriver | DifferentialIkDriver
-    ee_sensor: EndEffectorPoseSensor
     q0: np.ndarray
     X_BE0: np.ndarray  # the start pose of E in B (m)
+    ee_sensor: EndEffectorPoseSensor | None = None
+
+    def pose_sensor(self, builder: DiagramBuilder) -> EndEffectorPoseSensor:
+        """The end-effector pose sensor ("ee_sensor"), added on first use: every Python system
+        in a diagram costs time at each simulator step, used or not."""
+        if self.ee_sensor is None:
+            h = self.handles
+            self.ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
+                h.plant, h.base_frame, h.ee_frame))
+            builder.Connect(h.plant.get_body_poses_output_port(),
+                            self.ee_sensor.get_body_poses_input_port())
+        return self.ee_sensor
 
 
 def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
     """The arm's MultibodyPlant (``scenario.plant_config``), its driver (``scenario.arm.driver``:
     Drake's differential-IK integrator tracking a commanded pose, or our differential-IK driver
-    taking a twist; three steps per camera period) and the end-effector pose sensor."""
+    taking a twist; three steps per camera period); the end-effector pose sensor is added when
+    needed (``_Arm.pose_sensor``)."""
     a = scenario.arm
     X_WB = transform_matrix(a.X_WB, "arm.X_WB")
     q0 = np.radians(a.q0_deg)
@@ -207,11 +221,7 @@ def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
     X_BE0 = control_plant.CalcRelativeTransform(
         context, control_plant.GetFrameByName(a.base_frame),
         control_plant.GetFrameByName(a.ee_frame)).GetAsMatrix4()
-    ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
-        handles.plant, a.base_frame, a.ee_frame))
-    builder.Connect(handles.plant.get_body_poses_output_port(),
-                    ee_sensor.get_body_poses_input_port())
-    return _Arm(handles, control_plant, driver, ee_sensor, q0, X_BE0)
+    return _Arm(handles, control_plant, driver, q0, X_BE0)
 
 
 def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true):
@@ -226,7 +236,8 @@ def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true
 
 def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
                      X_EC_true) -> HandEyeCamera:
-    """The point-feature camera (a pose oracle), its noise sources, its X_WE input."""
+    """The point-feature camera (a pose oracle) reading the arm's body poses, and its noise
+    sources."""
     model = scenario.camera.model
     noise = model.pose_noise
     if isinstance(noise, So3PoseNoise):
@@ -238,8 +249,11 @@ def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
         p_TQ=np.asarray(scenario.target.points, dtype=float),
         X_WT=transform_matrix(scenario.target.X_WT, "target.X_WT"), period=scenario.period,
         pixel_sigma=model.pixel_sigma, pose_noise_model=noise_model,
-        rotation_sigma=rotation_sigma, translation_sigma=noise.translation_sigma))
-    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), camera.get_X_WE_input_port())
+        rotation_sigma=rotation_sigma, translation_sigma=noise.translation_sigma,
+        plant=arm.handles.plant, base_frame_name=scenario.arm.base_frame,
+        ee_frame_name=scenario.arm.ee_frame))
+    builder.Connect(arm.handles.plant.get_body_poses_output_port(),
+                    camera.get_body_poses_input_port())
     add_noise_sources(builder, camera, ("pixel_noise", "pose_noise"), scenario.period)
     return camera
 
@@ -304,7 +318,7 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
         **LOOP_DETECT_OPTIONS))
     builder.Connect(rendered.color_image_output_port(), detector.get_color_image_input_port())
     pose = builder.AddNamedSystem("camera_pose", HandCameraPose(X_EC_true, scenario.period))
-    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), pose.get_X_WE_input_port())
+    builder.Connect(arm.pose_sensor(builder).get_X_WE_output_port(), pose.get_X_WE_input_port())
     recorder = None
     if model.frames_to_save:
         recorder = builder.AddNamedSystem("frame_recorder", FrameRecorder(
@@ -422,25 +436,25 @@ def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
     return servo
 
 
-def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm):
-    """X_BE held from each camera trigger: a ``ZeroOrderHold`` for the point-feature camera
-    (which samples in the same discrete phase), a ``CameraTriggerSampler`` for a rendered one
-    (which samples in the unrestricted phase, where the detector renders its image)."""
-    if isinstance(scenario.camera.model, RenderedImages):
-        hold = CameraTriggerSampler(scenario.period, 12)
-    else:
-        hold = ZeroOrderHold(scenario.period, 12)
-    sampler = builder.AddNamedSystem("robot_pose_sampler", hold)
-    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
-    return sampler
+def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera):
+    """The output port of X_BE held from each camera trigger: the point-feature camera's own
+    ``X_BE`` (sampled with its image), a ``CameraTriggerSampler`` for a rendered one (which
+    samples in the unrestricted phase, where the detector renders its image)."""
+    if not isinstance(camera, RenderedCameraParts):
+        return camera.get_X_BE_output_port()
+    sampler = builder.AddNamedSystem("robot_pose_sampler",
+                                     CameraTriggerSampler(scenario.period, 12))
+    builder.Connect(arm.pose_sensor(builder).get_X_BE_output_port(), sampler.get_input_port())
+    return sampler.get_output_port()
 
 
 def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
                    servo) -> tuple[HandEyeCalibrator, object]:
     """The calibrator, fed by the robot pose sampled on the camera's clock (so that (X_BE, X_CT)
-    pairs are synchronous), the camera's measurement and the servo's phase."""
+    pairs are synchronous), the camera's measurement and the servo's phase. Returns it and the
+    output port of the sampled robot pose."""
     period = scenario.period
-    sampler = add_robot_pose_sampler(scenario, builder, arm)
+    sampled_X_BE = add_robot_pose_sampler(scenario, builder, arm, camera)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
@@ -448,10 +462,10 @@ def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camer
         num_self_calibration_motions=len(scenario.servo.self_calibration),
         init_method=scenario.calibrator.init_method,
         max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4))
-    builder.Connect(sampler.get_output_port(), calibrator.get_X_BE_input_port())
+    builder.Connect(sampled_X_BE, calibrator.get_X_BE_input_port())
     builder.Connect(camera.get_X_CT_output_port(), calibrator.get_X_CT_input_port())
     builder.Connect(servo.get_phase_output_port(), calibrator.get_phase_input_port())
-    return calibrator, sampler
+    return calibrator, sampled_X_BE
 
 
 def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
@@ -476,7 +490,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     _check_start_visibility(scenario, arm, X_EC_true)
     camera = add_camera(scenario, builder, arm, X_EC_true)
     servo = add_servo(scenario, builder, arm, camera)
-    calibrator, sampler = add_calibrator(scenario, builder, arm, camera, servo)
+    calibrator, sampled_X_BE = add_calibrator(scenario, builder, arm, camera, servo)
     if isinstance(camera, RenderedCameraParts):
         connect_detector_to_calibrator(scenario, builder, camera, calibrator)
     if feedback:
@@ -507,7 +521,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             "visible": camera.get_visible_output_port(),
             "X_WC": camera.get_X_WC_output_port(),
             "V_WE_E_command": servo.get_command_output_port(),
-            "X_BE_sampled": sampler.get_output_port(),
+            "X_BE_sampled": sampled_X_BE,
             "X_CT_measured": camera.get_X_CT_output_port(),
             **({"ik_status": arm.driver.get_status_output_port()}
                if isinstance(arm.driver, DifferentialIkDriver) else {}),
@@ -524,7 +538,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             builder, arm.handles.scene_graph, meshcat,
             transform_matrix(scenario.target.X_WT, "target.X_WT"),
             target_points_T(scenario), scenario.period,
-            camera.get_X_WC_output_port(), arm.ee_sensor.get_X_WE_output_port(),
+            camera.get_X_WC_output_port(), arm.pose_sensor(builder).get_X_WE_output_port(),
             calibrator.get_X_EC_output_port())
 
     diagram = builder.Build()

@@ -101,8 +101,12 @@ def test_same_seed_same_logs_different_seed_different_noise():
 def test_diagram_structure():
     loop = build_diagram(load_scenario())
     names = {s.get_name() for s in loop.diagram.GetSystems()}
-    assert {"plant", "scene_graph", "diff_ik", "ee_sensor", "camera", "servo", "calibrator",
-            "robot_pose_sampler", "pixel_noise_source", "pose_noise_source"} <= names
+    assert {"plant", "scene_graph", "diff_ik", "desired_state", "camera", "servo", "calibrator",
+            "pixel_noise_source", "pose_noise_source"} <= names
+    # The camera reads the plant's body poses and samples the robot pose with its image: no
+    # separate pose sensor or sampler (each Python system costs time at every step).
+    assert not {"ee_sensor", "robot_pose_sampler"} & names
+    assert loop.ee_sensor is None
     for port in ("X_EC_estimate", "features", "feature_error", "V_WE_E_command", "X_WC"):
         assert loop.diagram.HasOutputPort(port)
     dot = loop.diagram.GetGraphvizString(max_depth=1)

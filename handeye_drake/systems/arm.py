@@ -124,6 +124,16 @@ def _check_frame(plant: MultibodyPlant, name, arg: str, model_instance=None):
             else plant.GetFrameByName(name, model_instance))
 
 
+def frame_in_body(plant: MultibodyPlant, name: str, arg: str):
+    """(body index (int), X_BodyF 4×4): where the frame called ``name`` of a finalized ``plant``
+    sits, to read its pose from the plant's ``body_poses`` output (X_WF = X_WBody · X_BodyF).
+    ValueError naming ``arg`` for an unknown or ambiguous name."""
+    if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
+        raise ValueError(f"plant: expected a finalized MultibodyPlant, got {type(plant).__name__}")
+    frame = _check_frame(plant, name, arg)
+    return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
+
+
 def _per_actuator(value, name: str, n: int) -> np.ndarray:
     v = np.full(n, value, dtype=float) if np.ndim(value) == 0 else value
     v = as_matrix(v, name, (n,))
