@@ -275,19 +275,20 @@ class VisualServoController(LeafSystem):
         discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
         # The desired pose reached at the end of the elapsed command period becomes X_k.
         t = context.get_time()
-        R, p = self._DesiredPose(context, t)
+        R, p = self._DesiredPose(context, t, orthonormalize=True)
         discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p]))
         discrete_state.set_value(self._pose_time_index, [t])
 
-    def _DesiredPose(self, context, t):
-        """(R, p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist V_k."""
+    def _DesiredPose(self, context, t, orthonormalize: bool = False):
+        """(R (3×3), p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist
+        V_k."""
         x = context.get_discrete_state(self._pose_index).get_value()
         s = t - context.get_discrete_state(self._pose_time_index).get_value()[0]
-        wx, wy, wz, vx, vy, vz = context.get_discrete_state(self._command_index).get_value()
-        R0 = x[:9].reshape(3, 3)
-        if s == 0.0 or not (wx or wy or wz or vx or vy or vz):
-            return R0.copy(), x[9:].copy()
-        return _twist_motion(R0, x[9:], wx * s, wy * s, wz * s, vx * s, vy * s, vz * s)
+        V = context.get_discrete_state(self._command_index).get_value()
+        if s == 0.0 or not V.any():
+            return x[:9].reshape(3, 3), x[9:]
+        R, p = _twist_motion(x.tolist(), (s * V).tolist(), orthonormalize)
+        return np.array(R).reshape(3, 3), np.array(p)
 
     def _CalcDesiredPose(self, context, output) -> None:
         R, p = self._DesiredPose(context, context.get_time())
@@ -299,12 +300,14 @@ class VisualServoController(LeafSystem):
         the same arithmetic, step by step (tests check they are equal)."""
         uv_m = uv[usable]
         xy = np.linalg.solve(self._K2, (uv_m - self._principal_point).T).T
-        L = np.empty((2 * len(uv_m), 6))
-        for i, ((x, y), z) in enumerate(zip(xy.tolist(), Z[usable].tolist())):
-            L[2 * i:2 * i + 2] = self._K2 @ np.array([
-                [x * y, -(1.0 + x * x), y, -1.0 / z, 0.0, x / z],
-                [1.0 + y * y, -x * y, -x, 0.0, -1.0 / z, y / z]])
-        L = L @ twist_transform(X_CE)
+        x, y, z = xy[:, 0], xy[:, 1], Z[usable]
+        # Each point's 2×6 block of the normalized interaction matrix, stacked (N, 2, 6).
+        M = np.zeros((len(uv_m), 2, 6))
+        M[:, 0, 0], M[:, 0, 1], M[:, 0, 2] = x * y, -(1.0 + x * x), y
+        M[:, 0, 3], M[:, 0, 5] = -1.0 / z, x / z
+        M[:, 1, 0], M[:, 1, 1], M[:, 1, 2] = 1.0 + y * y, -x * y, -x
+        M[:, 1, 4], M[:, 1, 5] = -1.0 / z, y / z
+        L = (self._K2 @ M).reshape(-1, 6) @ twist_transform(X_CE)
         error = (uv_m - self._desired_uv[usable]).reshape(-1)
         V = -self._gain * (np.linalg.pinv(L, rcond=1e-10) @ error)
         scale = 1.0
@@ -316,19 +319,21 @@ class VisualServoController(LeafSystem):
         return scale * V
 
     def _EvalFinite(self, port, context):
-        value = np.array(port.Eval(context), dtype=float)
-        if not np.all(np.isfinite(value)):
+        value = port.Eval(context)  # (a new array)
+        if not np.isfinite(value).all():
             raise ValueError(f"{port.get_name()} input of {self.get_name()!r}: contains NaN or "
                              f"infinite values at t = {context.get_time()}")
         return value
 
 
-def _twist_motion(R0, p0, ax, ay, az, bx, by, bz):
-    """(R, p) = X0 · exp([a; b]): a pose X0 = (R0, p0) moved by the body twist [ω; v] held for
-    s seconds, a = ω s (rad) and b = v s (m) expressed in the moving frame — the SE(3)
-    exponential, R = R0 exp([a]×), p = p0 + R0 J(a) b with J the left Jacobian of SO(3).
-    The rotation is re-orthonormalized (one Newton step, R ← R (3I − RᵀR) / 2) so a pose
-    integrated over many periods stays a rotation to rounding."""
+def _twist_motion(x, sV, orthonormalize: bool):
+    """([R row-major], [p]) of X0 · exp([a; b]): the pose X0 = x ([vec_row(R0); p0], a list)
+    moved by the body twist [ω; v] held for s seconds, sV = [a; b] = [ω s (rad); v s (m)]
+    expressed in the moving frame — the SE(3) exponential, R = R0 exp([a]×) and
+    p = p0 + R0 J(a) b, J the left Jacobian of SO(3). On Python floats (3×3 numpy calls cost
+    more than the arithmetic). ``orthonormalize``: one Newton step R ← R (3I − RᵀR) / 2, so a
+    pose integrated over many periods stays a rotation to rounding."""
+    ax, ay, az, bx, by, bz = sV
     th2 = ax * ax + ay * ay + az * az
     if th2 < 1e-8:  # Taylor series: the terms dropped are below 1e-17
         A, B, C = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
@@ -336,10 +341,20 @@ def _twist_motion(R0, p0, ax, ay, az, bx, by, bz):
         th = math.sqrt(th2)
         A, B = math.sin(th) / th, (1.0 - math.cos(th)) / th2
         C = (1.0 - A) / th2
-    K = np.array([[0.0, -az, ay], [az, 0.0, -ax], [-ay, ax, 0.0]])
-    K2 = K @ K
-    b = np.array([bx, by, bz])
-    R = R0 @ (np.eye(3) + A * K + B * K2)
-    R = R @ (1.5 * np.eye(3) - 0.5 * (R.T @ R))
-    p = p0 + R0 @ (b + B * (K @ b) + C * (K2 @ b))
+    # exp([a]×) = I + A [a]× + B [a]×², with [a]×² = a aᵀ − θ² I.
+    d = 1.0 - B * th2
+    E = ((d + B * ax * ax, B * ax * ay - A * az, B * ax * az + A * ay),
+         (B * ay * ax + A * az, d + B * ay * ay, B * ay * az - A * ax),
+         (B * az * ax - A * ay, B * az * ay + A * ax, d + B * az * az))
+    # J b = b + B a × b + C a × (a × b)
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ex, ey, ez = ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx
+    j = (bx + B * cx + C * ex, by + B * cy + C * ey, bz + B * cz + C * ez)
+    R0 = (x[0:3], x[3:6], x[6:9])
+    R = [[r[0] * E[0][k] + r[1] * E[1][k] + r[2] * E[2][k] for k in range(3)] for r in R0]
+    p = [x[9 + i] + R0[i][0] * j[0] + R0[i][1] * j[1] + R0[i][2] * j[2] for i in range(3)]
+    if orthonormalize:
+        G = [[sum(R[m][i] * R[m][k] for m in range(3)) for k in range(3)] for i in range(3)]
+        R = [[sum(r[m] * ((1.5 if m == k else 0.0) - 0.5 * G[m][k]) for m in range(3))
+              for k in range(3)] for r in R]
     return R, p
