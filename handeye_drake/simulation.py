@@ -21,9 +21,8 @@ the Python ``DifferentialIkDriver`` taking the servo's ``V_WE_E_command``.
 With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
 SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
 visible, X_CT_measured, and ``found`` → the calibrator's ``X_CT_valid``, its covariance →
-``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``, fed by an
-``EndEffectorPoseSensor``), and the robot pose is sampled by a ``CameraTriggerSampler``, in the
-same update phase as the image.
+``X_CT_covariance`` when asked); the true X_WC and the robot pose X_BE are sampled from the plant's body poses by
+``HandCameraPose``, in the same update phase as the image.
 
 ``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
 simulates it and returns a ``ScenarioResult``.
@@ -73,7 +72,6 @@ from .systems.camera_pose import HandCameraPose
 from .systems.frame_recorder import FrameRecorder
 from .systems.servo import SelfCalibrationMotion, VisualServoController
 from .systems.target_detector import TargetDetector
-from .systems.trigger_sampler import CameraTriggerSampler
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
 
 #: Final RMS feature error (px) above which a run's servo counts as not converged.
@@ -317,8 +315,11 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
         target, intrinsics, scenario.period, feature_ids=model.feature_ids_or_default(),
         **LOOP_DETECT_OPTIONS))
     builder.Connect(rendered.color_image_output_port(), detector.get_color_image_input_port())
-    pose = builder.AddNamedSystem("camera_pose", HandCameraPose(X_EC_true, scenario.period))
-    builder.Connect(arm.pose_sensor(builder).get_X_WE_output_port(), pose.get_X_WE_input_port())
+    pose = builder.AddNamedSystem("camera_pose", HandCameraPose(
+        X_EC_true, scenario.period, plant=arm.handles.plant,
+        base_frame_name=scenario.arm.base_frame, ee_frame_name=scenario.arm.ee_frame))
+    builder.Connect(arm.handles.plant.get_body_poses_output_port(),
+                    pose.get_body_poses_input_port())
     recorder = None
     if model.frames_to_save:
         recorder = builder.AddNamedSystem("frame_recorder", FrameRecorder(
@@ -436,16 +437,13 @@ def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
     return servo
 
 
-def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera):
+def robot_pose_at_trigger(camera):
     """The output port of X_BE held from each camera trigger: the point-feature camera's own
-    ``X_BE`` (sampled with its image), a ``CameraTriggerSampler`` for a rendered one (which
+    ``X_BE`` (sampled with its image), or the rendered camera's ``HandCameraPose`` (which
     samples in the unrestricted phase, where the detector renders its image)."""
-    if not isinstance(camera, RenderedCameraParts):
-        return camera.get_X_BE_output_port()
-    sampler = builder.AddNamedSystem("robot_pose_sampler",
-                                     CameraTriggerSampler(scenario.period, 12))
-    builder.Connect(arm.pose_sensor(builder).get_X_BE_output_port(), sampler.get_input_port())
-    return sampler.get_output_port()
+    if isinstance(camera, RenderedCameraParts):
+        return camera.pose.get_X_BE_output_port()
+    return camera.get_X_BE_output_port()
 
 
 def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
@@ -454,7 +452,7 @@ def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camer
     pairs are synchronous), the camera's measurement and the servo's phase. Returns it and the
     output port of the sampled robot pose."""
     period = scenario.period
-    sampled_X_BE = add_robot_pose_sampler(scenario, builder, arm, camera)
+    sampled_X_BE = robot_pose_at_trigger(camera)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),

@@ -322,6 +322,10 @@ camera:
     assert (config.clipping_near, config.clipping_far) == (0.05, 3.0)
     assert loop.camera.detector.period == pytest.approx(1 / 15)
     assert loop.camera.rendered.intrinsics.width == 320
+    # One sampler of the trigger instant (X_WC and X_BE from the plant's body poses): no pose
+    # sensor or separate robot-pose sampler.
+    names = {system.get_name() for system in loop.diagram.GetSystems()}
+    assert "camera_pose" in names and not {"ee_sensor", "robot_pose_sampler"} & names
 
 
 def test_the_loop_systems_refuse_bad_arguments():
