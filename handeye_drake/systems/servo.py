@@ -13,7 +13,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import pose_to_vector, twist_transform, vector_to_pose
+from ..estimation.se3 import pose_to_vector, skew
 from ..estimation.validation import as_matrix, as_transform, check_positive, rotation_defect
 from ..vision.camera_model import (
     MIN_DEPTH,
@@ -93,8 +93,8 @@ class VisualServoController(LeafSystem):
         X_BE_desired (abstract RigidTransform): the commanded pose of E in B (m), a function of
             time and the state (computed when read: once per step of the pose tracker).
 
-    Discrete state: one group per vector output, and the desired pose X_k ([vec_row(R); p])
-    with its time t_k.
+    Discrete state: one group per vector output, and [X_k ([vec_row(R); p]); t_k; V_k] of the
+    commanded pose.
     """
 
     def __init__(self, intrinsics: CameraIntrinsics, p_TQ, desired_features, gain: float,
@@ -164,8 +164,10 @@ class VisualServoController(LeafSystem):
         self._phase_index = self.DeclareDiscreteState(1)
         self._error_index = self.DeclareDiscreteState(1)
         self._status_index = self.DeclareDiscreteState(1)
-        self._pose_index = self.DeclareDiscreteState(pose_to_vector(X_BE0))  # X_k
-        self._pose_time_index = self.DeclareDiscreteState(1)                 # t_k
+        # [X_k ([vec_row(R); p]); t_k; V_k]: what the commanded pose is computed from, in one
+        # group (the pose is read three times a period).
+        self._pose_index = self.DeclareDiscreteState(np.concatenate([pose_to_vector(X_BE0),
+                                                                     np.zeros(7)]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateCommand)
         self.DeclareInitializationDiscreteUpdateEvent(self._UpdateCommand)
 
@@ -176,9 +178,7 @@ class VisualServoController(LeafSystem):
         self._X_BE_desired_port = self.DeclareAbstractOutputPort(
             "X_BE_desired", lambda: AbstractValue.Make(RigidTransform()), self._CalcDesiredPose,
             prerequisites_of_calc={self.time_ticket(),
-                                   self.discrete_state_ticket(self._command_index),
-                                   self.discrete_state_ticket(self._pose_index),
-                                   self.discrete_state_ticket(self._pose_time_index)})
+                                   self.discrete_state_ticket(self._pose_index)})
 
     # Ports, as members so users can wire them by handle.
     def get_features_input_port(self):
@@ -211,8 +211,9 @@ class VisualServoController(LeafSystem):
     def SetDesiredPose(self, context, X_BE) -> None:
         """Restarts the commanded pose at X_BE (4×4 or RigidTransform, E in B) at the context's
         time, e.g. the robot's pose when the run starts."""
-        context.SetDiscreteState(self._pose_index, pose_to_vector(as_transform(X_BE, "X_BE")))
-        context.SetDiscreteState(self._pose_time_index, [context.get_time()])
+        V = context.get_discrete_state(self._command_index).get_value()
+        context.SetDiscreteState(self._pose_index, np.concatenate([
+            pose_to_vector(as_transform(X_BE, "X_BE")), [context.get_time()], V]))
 
     @staticmethod
     def _check_speed_limit(value, name):
@@ -246,8 +247,8 @@ class VisualServoController(LeafSystem):
         n = self._p_TQ.shape[0]
         features = self._EvalFinite(self._features_port, context)
         visible = self._EvalFinite(self._visible_port, context) > 0.5
-        X_CT = vector_to_pose(self._EvalFinite(self._X_CT_port, context))
-        Z = (self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3])[:, 2]
+        x_CT = self._EvalFinite(self._X_CT_port, context)
+        Z = (self._p_TQ @ x_CT[:9].reshape(3, 3).T + x_CT[9:12])[:, 2]
         usable = visible & (Z > MIN_DEPTH)
         n_usable = int(usable.sum())
 
@@ -263,11 +264,11 @@ class VisualServoController(LeafSystem):
         if phase < len(self._motions):
             command = self._motion_twists[phase]
         elif status == STATUS_OK:
-            X_CE = vector_to_pose(self._EvalFinite(self._X_CE_port, context))
-            if rotation_defect(X_CE[:3, :3]) > ESTIMATE_ROTATION_TOLERANCE:
+            x_CE = self._EvalFinite(self._X_CE_port, context)
+            if not _is_estimate_rotation(x_CE):
                 status = STATUS_INVALID_ESTIMATE
             else:
-                command = self._ServoTwist(features.reshape(n, 2), Z, X_CE, usable)
+                command = self._ServoTwist(features.reshape(n, 2), Z, x_CE, usable)
 
         discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
         discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
@@ -276,26 +277,27 @@ class VisualServoController(LeafSystem):
         # The desired pose reached at the end of the elapsed command period becomes X_k.
         t = context.get_time()
         R, p = self._DesiredPose(context, t, orthonormalize=True)
-        discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p]))
-        discrete_state.set_value(self._pose_time_index, [t])
+        discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p, [t],
+                                                                   command]))
 
     def _DesiredPose(self, context, t, orthonormalize: bool = False):
         """(R (3×3), p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist
         V_k."""
         x = context.get_discrete_state(self._pose_index).get_value()
-        s = t - context.get_discrete_state(self._pose_time_index).get_value()[0]
-        V = context.get_discrete_state(self._command_index).get_value()
+        s = t - x[12]
+        V = x[13:]
         if s == 0.0 or not V.any():
-            return x[:9].reshape(3, 3), x[9:]
-        R, p = _twist_motion(x.tolist(), (s * V).tolist(), orthonormalize)
+            return x[:9].reshape(3, 3), x[9:12]
+        R, p = _twist_motion(x[:12].tolist(), (s * V).tolist(), orthonormalize)
         return np.array(R).reshape(3, 3), np.array(p)
 
     def _CalcDesiredPose(self, context, output) -> None:
         R, p = self._DesiredPose(context, context.get_time())
         output.set_value(RigidTransform(RotationMatrix(R), p))
 
-    def _ServoTwist(self, uv, Z, X_CE, usable) -> np.ndarray:
-        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` without
+    def _ServoTwist(self, uv, Z, x_CE, usable) -> np.ndarray:
+        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` (X_CE as
+        the pose vector x_CE) without
         the per-call checks of its arguments (checked once, in the constructor, or just above):
         the same arithmetic, step by step (tests check they are equal)."""
         uv_m = uv[usable]
@@ -307,7 +309,13 @@ class VisualServoController(LeafSystem):
         M[:, 0, 3], M[:, 0, 5] = -1.0 / z, x / z
         M[:, 1, 0], M[:, 1, 1], M[:, 1, 2] = 1.0 + y * y, -x * y, -x
         M[:, 1, 4], M[:, 1, 5] = -1.0 / z, y / z
-        L = (self._K2 @ M).reshape(-1, 6) @ twist_transform(X_CE)
+        # twist_transform(X_CE) from the pose vector: [[R, 0], [[p]× R, R]].
+        R, p = x_CE[:9].reshape(3, 3), x_CE[9:12]
+        T = np.zeros((6, 6))
+        T[:3, :3] = R
+        T[3:, 3:] = R
+        T[3:, :3] = skew(p) @ R
+        L = (self._K2 @ M).reshape(-1, 6) @ T
         error = (uv_m - self._desired_uv[usable]).reshape(-1)
         V = -self._gain * (np.linalg.pinv(L, rcond=1e-10) @ error)
         scale = 1.0
@@ -324,6 +332,21 @@ class VisualServoController(LeafSystem):
             raise ValueError(f"{port.get_name()} input of {self.get_name()!r}: contains NaN or "
                              f"infinite values at t = {context.get_time()}")
         return value
+
+
+def _is_estimate_rotation(x) -> bool:
+    """``rotation_defect(R) ≤ ESTIMATE_ROTATION_TOLERANCE`` for R = the first 9 entries of a
+    pose vector (row-major), on Python floats; the exact test decides near the bound."""
+    a, b, c, d, e, f, g, h, i = x[:9].tolist()
+    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
+        c * c + f * f + i * i - 1.0
+    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    tol = 0.999 * ESTIMATE_ROTATION_TOLERANCE
+    if frob2 <= tol * tol and abs(det - 1.0) <= tol:
+        return True
+    return rotation_defect(np.reshape(x[:9], (3, 3))) <= ESTIMATE_ROTATION_TOLERANCE
 
 
 def _twist_motion(x, sV, orthonormalize: bool):
