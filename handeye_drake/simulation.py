@@ -40,6 +40,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
+    Multiplexer,
     RandomSource,
 )
 
@@ -342,20 +343,57 @@ def connect_detector_to_calibrator(scenario: Scenario, builder: DiagramBuilder,
                         calibrator.get_X_CT_covariance_input_port())
 
 
-def add_detector_loggers(builder: DiagramBuilder, camera: RenderedCameraParts,
-                         period: float) -> dict:
-    """Loggers of the detector's ``found``, ``reprojection_rms``, ``num_points`` and
-    ``covariance``."""
-    loggers = {}
-    for name, port in {"detector_found": camera.detector.get_found_output_port(),
-                       "reprojection_rms": camera.detector.get_reprojection_rms_output_port(),
-                       "detector_num_points": camera.detector.get_num_points_output_port(),
-                       "detector_covariance": camera.detector.get_covariance_output_port(),
-                       }.items():
-        logger = LogVectorOutput(port, builder, period)
-        logger.set_name(f"log_{name}")
-        loggers[name] = logger
-    return loggers
+def detector_ports(camera: RenderedCameraParts) -> dict:
+    """The detector's ``found``, ``reprojection_rms``, ``num_points`` and ``covariance`` output
+    ports, by the names ``run_scenario`` logs them under."""
+    return {"detector_found": camera.detector.get_found_output_port(),
+            "reprojection_rms": camera.detector.get_reprojection_rms_output_port(),
+            "detector_num_points": camera.detector.get_num_points_output_port(),
+            "detector_covariance": camera.detector.get_covariance_output_port()}
+
+
+class LogSlice:
+    """One logged port of ``add_logger``'s single ``VectorLogSink``: ``FindLog(context)`` gives
+    its ``sample_times()``, ``data()`` (its rows of the log) and ``num_samples()``, like a
+    ``VectorLogSink`` of its own."""
+
+    def __init__(self, logger, start: int, stop: int):
+        self.logger, self.start, self.stop = logger, start, stop
+
+    def FindLog(self, context):
+        return _SlicedLog(self.logger.FindLog(context), self.start, self.stop)
+
+
+@dataclass
+class _SlicedLog:
+    log: object
+    start: int
+    stop: int
+
+    def sample_times(self):
+        return self.log.sample_times()
+
+    def data(self):
+        return self.log.data()[self.start:self.stop]
+
+    def num_samples(self) -> int:
+        return self.log.num_samples()
+
+
+def add_logger(builder: DiagramBuilder, ports: dict, period: float) -> dict:
+    """Logs every vector output port of ``ports`` ({name: port}) every ``period`` with one C++
+    ``Multiplexer`` and one ``VectorLogSink`` ("log"), rather than a logger per port (each system
+    costs time at every simulator step). Returns {name: LogSlice}."""
+    mux = builder.AddNamedSystem("log_multiplexer", Multiplexer(
+        [port.size() for port in ports.values()]))
+    slices, start = {}, 0
+    for i, (name, port) in enumerate(ports.items()):
+        builder.Connect(port, mux.get_input_port(i))
+        slices[name] = (start, start + port.size())
+        start += port.size()
+    logger = LogVectorOutput(mux.get_output_port(), builder, period)
+    logger.set_name("log")
+    return {name: LogSlice(logger, a, b) for name, (a, b) in slices.items()}
 
 
 @dataclass
@@ -476,7 +514,8 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             matrix; False feeds the servo the constant ``X_CE_fixed`` (default: the scenario's
             guess) — the calibrator still runs, but open loop.
         meshcat: an optional ``pydrake.geometry.Meshcat`` to visualize the arm in.
-        with_loggers: add the VectorLogSinks ``run_scenario`` reads (off for a clean picture).
+        with_loggers: add the log ``run_scenario`` reads (off for a clean picture): one
+            ``VectorLogSink`` of all logged ports (``add_logger``).
 
     Exported ports: outputs ``X_EC_estimate``, ``features``, ``feature_error``,
     ``V_WE_E_command``, ``X_WC``.
@@ -507,7 +546,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
 
     loggers = {}
     if with_loggers:
-        for name, port in {
+        ports = {
             "X_EC_estimate": calibrator.get_X_EC_output_port(),
             "X_EC_two_motion": calibrator.get_two_motion_output_port(),
             "X_EC_std": calibrator.get_X_EC_std_output_port(),
@@ -523,12 +562,10 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             "X_CT_measured": camera.get_X_CT_output_port(),
             **({"ik_status": arm.driver.get_status_output_port()}
                if isinstance(arm.driver, DifferentialIkDriver) else {}),
-        }.items():
-            logger = LogVectorOutput(port, builder, scenario.period)
-            logger.set_name(f"log_{name}")
-            loggers[name] = logger
+        }
         if isinstance(camera, RenderedCameraParts):
-            loggers.update(add_detector_loggers(builder, camera, scenario.period))
+            ports.update(detector_ports(camera))
+        loggers = add_logger(builder, ports, scenario.period)
 
     if meshcat is not None:
         from .systems.visualization import add_meshcat_visualization
