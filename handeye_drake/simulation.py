@@ -636,6 +636,9 @@ class ScenarioResult:
     diagnostics: list = field(default_factory=list)
     #: The run was stopped (Ctrl-C) before ``scenario.duration``.
     interrupted: bool = False
+    #: CPU time (s) of this process over the same span as ``wall_time`` (all its threads):
+    #: what the run cost, less sensitive than wall time to other processes on the machine.
+    cpu_time: float = float("nan")
     #: (K, 6) the servo's command [ω (rad/s); v (m/s)] in E.
     V_WE_E_command: np.ndarray | None = None
     #: Rendered camera only (None otherwise), per camera sample: the detector's found flag (1/0),
@@ -713,19 +716,20 @@ def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         simulator.set_monitor(monitor)
     if meshcat is not None:
         meshcat.StartRecording()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     interrupted = False
     try:
         simulator.Initialize()
         simulator.AdvanceTo(scenario.duration)
     except KeyboardInterrupt:
         interrupted = True
-    wall = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
     result = _collect_result(scenario, loop, context, wall)
     result.interrupted = interrupted
+    result.cpu_time = cpu
     return result
 
 
