@@ -220,7 +220,7 @@ class HandEyeCamera(LeafSystem):
         if not np.isfinite(x).all():
             raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
                              f"values at t = {context.get_time()}")
-        X_WE = vector_to_pose(x)
+        X_WE = vector_to_pose(x) if X_BE is None else X_WE_plant
         if not _is_rotation(x):
             raise ValueError(f"X_WE input of {self.get_name()!r}: rotation block is not a "
                              f"rotation matrix at t = {context.get_time()}: {x[:9].tolist()}")
@@ -231,7 +231,10 @@ class HandEyeCamera(LeafSystem):
 
         if self._pixel_sigma > 0:
             noise = self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
-            uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
+            if in_image.all():  # (the usual case: no boolean indexing)
+                uv += self._pixel_sigma * noise.reshape(-1, 2)
+            else:
+                uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
         if self._rotation_sigma > 0 or self._translation_sigma > 0:
             noise = self._EvalNoise(self._pose_noise_port, context, 12)
             X_CT_measured = X_CT.copy()
@@ -254,8 +257,11 @@ class HandEyeCamera(LeafSystem):
         """``project_points(p_CQ, intrinsics, MIN_DEPTH)`` without its checks: (uv, in_image)."""
         Z = p_CQ[:, 2]
         in_front = Z > MIN_DEPTH
-        uv = np.zeros((p_CQ.shape[0], 2))
-        if in_front.any():
+        if in_front.all():  # (the usual case: no boolean indexing)
+            uv = (p_CQ[:, :2] / Z[:, None]) @ self._K2.T + self._principal_point
+        else:
+            uv = np.zeros((p_CQ.shape[0], 2))
+        if in_front.any() and not in_front.all():
             xy = p_CQ[in_front, :2] / Z[in_front, None]
             uv[in_front] = xy @ self._K2.T + self._principal_point
         in_image = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] < self._intrinsics.width)
