@@ -27,7 +27,9 @@ Sections (``--sections``):
   time step, same joint limits) toward a fixed pose under an end-effector speed limit — a
   constant twist — and nothing else. Target ≤ 1.3×; both real-time factors are printed. The
   same loop with ``arm.driver: !TwistCommand`` (our Python differential-IK driver on the servo's
-  twist) is timed beside them, for comparison (no target).
+  twist) is timed beside them, and the reference with as many idle Python ``LeafSystem``s as the
+  loop has (no ports, no events: the simulator's cost of a Python system at each of its steps),
+  for comparison (no target).
 - ``rendered``: the rendered-camera loop (``run_scenario`` of ``scenarios/rendered.yaml``
   shortened to ``--rendered-duration`` s) against rendering the same frames with the same
   ``RgbdSensor`` at the same arm poses and running ``detect_target`` on them, alone (the
@@ -489,11 +491,14 @@ def calibrator_section(repeats: int, num_samples: int = 300, log=print) -> list[
 # ---------------------------------------------------------------------------------------------
 # The closed loop vs the arm driven by Drake's C++ differential IK.
 
-def arm_reference_diagram(scenario, twist_duration: float | None = None):
+def arm_reference_diagram(scenario, twist_duration: float | None = None,
+                          idle_python_systems: int = 0):
     """The scenario's arm plant (same ``plant_config``, same start) driven by Drake's C++
     ``DifferentialInverseKinematicsIntegrator`` at our driver's time step and joint limits,
     toward a fixed pose reached at a constant end-effector twist (its speed limits) — and nothing
-    else. Returns (diagram, integrator, plant, q0)."""
+    else, but ``idle_python_systems`` Python ``LeafSystem``s without ports or events (what
+    Python systems cost the simulator by being there). Returns (diagram, integrator, plant,
+    q0)."""
     from pydrake.common.value import AbstractValue
     from pydrake.math import RigidTransform
     from pydrake.multibody.inverse_kinematics import (
@@ -545,24 +550,33 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None):
     builder.Connect(ik.get_output_port(), to_state.get_input_port())
     builder.Connect(to_state.get_output_port(),
                     handles.plant.get_desired_state_input_port(handles.model_instance))
+    from pydrake.systems.framework import LeafSystem
+    for k in range(idle_python_systems):
+        builder.AddNamedSystem(f"idle_python_{k}", LeafSystem())
     return builder.Build(), ik, handles.plant, q0
 
 
 def loop_section(repeats: int, log=print) -> list[dict]:
     """The default closed loop (``run_scenario``'s simulation time) against the arm alone driven
-    by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration."""
+    by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration;
+    beside them the loop with the twist driver, and the reference with as many idle Python
+    systems as the loop has (no target: what they cost)."""
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-    from ..scenario import load_scenario
-    from ..simulation import run_scenario
+    from ..scenario import TwistCommand, load_scenario
+    from ..simulation import build_diagram, run_scenario
 
-    from ..scenario import TwistCommand
     scenario = load_scenario()
     twist = load_scenario()
     twist.arm.driver = TwistCommand()
     diagram, ik, plant, q0 = arm_reference_diagram(scenario)
+    # The loop's own Python systems (camera, servo, calibrator): each costs the simulator time
+    # at every step even when idle; the reference with as many idle ones shows that cost.
+    python_systems = [sys_ for sys_ in build_diagram(scenario, with_loggers=False).diagram
+                      .GetSystems() if type(sys_).__module__.startswith("handeye_drake")]
+    idle = arm_reference_diagram(scenario, idle_python_systems=len(python_systems))
 
-    def reference():
+    def simulate(diagram, ik):
         simulator = Simulator(diagram)
         ApplySimulatorConfig(scenario.simulator_config, simulator)
         context = simulator.get_mutable_context()
@@ -570,10 +584,19 @@ def loop_section(repeats: int, log=print) -> list[dict]:
         start, cpu = time.perf_counter(), time.process_time()
         simulator.Initialize()
         simulator.AdvanceTo(scenario.duration)
-        cpu_times["reference"].append(time.process_time() - cpu)
-        return time.perf_counter() - start, None
+        return time.perf_counter() - start, time.process_time() - cpu
 
-    cpu_times = {"reference": [], "loop": [], "twist": []}
+    def reference():
+        seconds, cpu = simulate(diagram, ik)
+        cpu_times["reference"].append(cpu)
+        return seconds, None
+
+    def idle_reference():
+        seconds, cpu = simulate(idle[0], idle[1])
+        cpu_times["idle"].append(cpu)
+        return seconds, None
+
+    cpu_times = {"reference": [], "loop": [], "twist": [], "idle": []}
 
     def loop():
         result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo, as above
@@ -585,7 +608,8 @@ def loop_section(repeats: int, log=print) -> list[dict]:
         cpu_times["twist"].append(result.cpu_time)
         return result.wall_time, result
 
-    timings = interleaved({"loop": loop, "reference": reference, "twist": twist_loop}, repeats)
+    timings = interleaved({"loop": loop, "reference": reference, "twist": twist_loop,
+                           "idle": idle_reference}, repeats)
     ref = timings["reference"][0]
     reference_text = (f"arm + C++ DifferentialInverseKinematicsIntegrator (real-time factor "
                       f"{scenario.duration / ref:.2f})")
@@ -602,6 +626,15 @@ def loop_section(repeats: int, log=print) -> list[dict]:
                      "ratio": ours / ref, "target": target, "cpu_ratio": cpu_ratio,
                      "final_rotation_error_deg": summary["final_rotation_error_deg"]})
         log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    ours = timings["idle"][0]
+    cpu_ratio = statistics.median(cpu_times["idle"]) / statistics.median(cpu_times["reference"])
+    rows.append({"section": "loop", "what": f"the reference with {len(python_systems)} idle "
+                 "Python LeafSystems (as many as the loop has: "
+                 f"{', '.join(sorted(sys_.get_name() for sys_ in python_systems))})",
+                 "value_us": ours, "unit": "s", "reference": "the reference",
+                 "reference_us": ref, "ratio": ours / ref, "target": None,
+                 "cpu_ratio": cpu_ratio})
+    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
     return rows
 
 
