@@ -371,4 +371,5 @@ def test_per_sample_law_equals_ibvs_twist_and_saturation(visible):
                                       max_angular_speed=max_w, max_linear_speed=max_v)
         expected = saturate_twist(ibvs_twist(uv, UV_STAR, Z, CAM, X_CE, 0.7, visible=usable),
                                   max_w, max_v)
-        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, pose_to_vector(X_CE), usable), expected)
+        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, pose_to_vector(X_CE), usable),
+                                      expected)
