@@ -66,13 +66,36 @@ def transform_matrix(t: Transform, name: str) -> np.ndarray:
 
 
 @dataclass
+class PoseCommand:
+    """The servo commands a pose (default): it integrates its twist over each control period into
+    a desired end-effector pose X_BE_desired, which Drake's C++
+    ``DifferentialInverseKinematicsIntegrator`` tracks three times per camera period under the
+    arm's joint position limits and ``velocity_scale`` × its joint velocity limits — a
+    servo-to-pose robot interface."""
+    velocity_scale: float = 1.0
+
+
+@dataclass
+class TwistCommand:
+    """The servo commands a twist, turned into joint set points by ``systems.arm``'s Python
+    ``DifferentialIkDriver`` (same rate and limits as ``PoseCommand``; slower: one Python QP
+    call per step). Kept to compare with the loop of earlier versions."""
+    velocity_scale: float = 1.0
+
+
+ArmDriver = typing.Union[PoseCommand, TwistCommand]
+
+
+@dataclass
 class ArmConfig:
-    """The robot. ``urdf`` empty = the shipped UR5e; ``q0_deg``: start joint angles (deg)."""
+    """The robot. ``urdf`` empty = the shipped UR5e; ``q0_deg``: start joint angles (deg);
+    ``driver``: what the servo commands (``!PoseCommand``, default, or ``!TwistCommand``)."""
     urdf: str = ""
     base_frame: str = "base_link"
     ee_frame: str = "tool0"
     q0_deg: list[float] = field(default_factory=lambda: [0.0, -90.0, 90.0, -90.0, -90.0, 0.0])
     X_WB: Transform = field(default_factory=lambda: _transform([0, 0, 0], [0, 0, 0]))
+    driver: ArmDriver = field(default_factory=PoseCommand)
 
 
 @dataclass
@@ -284,6 +307,9 @@ class Scenario:
         if self.plant_config.time_step < MIN_TIME_STEP:
             raise ValueError(f"plant_config.time_step: {self.plant_config.time_step:g} s is below "
                              f"{MIN_TIME_STEP:g} s (the run would never end)")
+        v = self.arm.driver.velocity_scale
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 < v <= 1.0):
+            raise ValueError(f"arm.driver.velocity_scale: must be in (0, 1], got {v!r}")
         s = self.camera.sensor
         check_positive(s.fps, "camera.sensor.fps")
         if s.width < 1 or s.height < 1:

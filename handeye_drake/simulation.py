@@ -1,21 +1,28 @@
 """The closed loop (docs/method.md §7–§8) as one Drake Diagram, and a runner for it.
 
-    ┌──────────┐ desired_state ┌───────┐ body_poses ┌────────────┐ X_WE ┌────────┐
-    │ diff_ik  │──────────────▶│ plant │───────────▶│ ee_sensor  │─────▶│ camera │◀─ noise
-    └──────────┘               └───────┘            └────────────┘      └────────┘
-         ▲ V_WE_E_command                                │ X_BE            │ features, visible,
-    ┌────┴──────┐◀────────────────────────────────────────┼─────────────────┘ X_CT_measured
-    │ servo     │   phase ┌────────────┐ X_BE  ┌──────────▼──────────┐
-    │ (IBVS)    │────────▶│ calibrator │◀──────│ robot_pose_sampler  │ (ZeroOrderHold, camera clock)
-    └───────────┘◀────────└────────────┘       └─────────────────────┘
+    ┌──────────┐ desired_state ┌───────┐ body_poses              ┌────────┐
+    │ diff_ik  │──────────────▶│ plant │────────────────────────▶│ camera │◀─ noise
+    └──────────┘               └───────┘                         └────────┘
+         ▲ X_BE_desired                        X_BE (at the trigger) │    │ features, visible,
+    ┌────┴──────┐◀───────────────────────────────────────────────────┼────┘ X_CT_measured
+    │ servo     │   phase ┌────────────┐◀──────────────────────────────┘
+    │ (IBVS)    │────────▶│ calibrator │
+    └───────────┘◀────────└────────────┘
           X_CE_estimate (the feedback of the design)
+
+The point-feature camera reads the end-effector pose from the plant's body poses and holds the
+robot pose X_BE of its trigger instant for the calibrator (one Python system samples both).
+
+The arm's driver (``scenario.arm.driver``): with ``!PoseCommand`` (default) ``diff_ik`` is Drake's
+C++ ``DifferentialInverseKinematicsIntegrator`` tracking the servo's ``X_BE_desired``, followed by
+a ``StateInterpolatorWithDiscreteDerivative`` (``desired_state``); with ``!TwistCommand`` it is
+the Python ``DifferentialIkDriver`` taking the servo's ``V_WE_E_command``.
 
 With a rendered camera (``camera.model: !RenderedImages``) the camera box is the board in
 SceneGraph, an ``RgbdSensor`` on the flange and a ``TargetDetector`` on its images (features,
 visible, X_CT_measured, and ``found`` → the calibrator's ``X_CT_valid``, its covariance →
-``X_CT_covariance`` when asked); the true X_WC comes from the kinematics (``HandCameraPose``),
-and the robot pose is sampled by a ``CameraTriggerSampler``, in the same update phase as the
-image.
+``X_CT_covariance`` when asked); the true X_WC and the robot pose X_BE are sampled from the plant's body poses by
+``HandCameraPose``, in the same update phase as the image.
 
 ``build_diagram(scenario)`` returns the Diagram and handles to its parts; ``run_scenario``
 simulates it and returns a ``ScenarioResult``.
@@ -33,8 +40,8 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
+    Multiplexer,
     RandomSource,
-    ZeroOrderHold,
 )
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
@@ -42,11 +49,19 @@ from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_p
 from .scenario import (
     RENDERED_PIXEL_SIGMA,
     RenderedImages,
+    TwistCommand,
     Scenario,
     So3PoseNoise,
     transform_matrix,
 )
-from .systems.arm import DifferentialIkDriver, EndEffectorPoseSensor, add_arm, make_control_plant
+from .systems.arm import (
+    DifferentialIkDriver,
+    EndEffectorPoseSensor,
+    PoseTrackingDriver,
+    add_arm,
+    add_pose_tracking_driver,
+    make_control_plant,
+)
 from .systems.calibrator import (
     STATUS_COLLECTING,
     STATUS_FILTERING,
@@ -58,7 +73,6 @@ from .systems.camera_pose import HandCameraPose
 from .systems.frame_recorder import FrameRecorder
 from .systems.servo import SelfCalibrationMotion, VisualServoController
 from .systems.target_detector import TargetDetector
-from .systems.trigger_sampler import CameraTriggerSampler
 from .vision.camera_model import CameraIntrinsics, project_points, target_visibility
 
 #: Final RMS feature error (px) above which a run's servo counts as not converged.
@@ -147,8 +161,8 @@ class ClosedLoop:
     plant: object
     scene_graph: object
     model_instance: object
-    driver: DifferentialIkDriver
-    ee_sensor: EndEffectorPoseSensor
+    driver: PoseTrackingDriver | DifferentialIkDriver
+    ee_sensor: EndEffectorPoseSensor | None  # only when something reads it (rendered, Meshcat)
     camera: HandEyeCamera
     servo: VisualServoController
     calibrator: HandEyeCalibrator
@@ -160,14 +174,28 @@ class ClosedLoop:
 class _Arm:
     handles: object
     control_plant: object
-    driver: DifferentialIkDriver
-    ee_sensor: EndEffectorPoseSensor
+    driver: PoseTrackingDriver | DifferentialIkDriver
     q0: np.ndarray
+    X_BE0: np.ndarray  # the start pose of E in B (m)
+    ee_sensor: EndEffectorPoseSensor | None = None
+
+    def pose_sensor(self, builder: DiagramBuilder) -> EndEffectorPoseSensor:
+        """The end-effector pose sensor ("ee_sensor"), added on first use: every Python system
+        in a diagram costs time at each simulator step, used or not."""
+        if self.ee_sensor is None:
+            h = self.handles
+            self.ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
+                h.plant, h.base_frame, h.ee_frame))
+            builder.Connect(h.plant.get_body_poses_output_port(),
+                            self.ee_sensor.get_body_poses_input_port())
+        return self.ee_sensor
 
 
 def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
-    """The arm's MultibodyPlant (``scenario.plant_config``), its differential-IK driver (taking
-    the servo's twist) and the end-effector pose sensor."""
+    """The arm's MultibodyPlant (``scenario.plant_config``), its driver (``scenario.arm.driver``:
+    Drake's differential-IK integrator tracking a commanded pose, or our differential-IK driver
+    taking a twist; three steps per camera period); the end-effector pose sensor is added when
+    needed (``_Arm.pose_sensor``)."""
     a = scenario.arm
     X_WB = transform_matrix(a.X_WB, "arm.X_WB")
     q0 = np.radians(a.q0_deg)
@@ -178,15 +206,21 @@ def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
                          f"got {len(q0)}")
     handles = add_arm(builder, plant_config=scenario.plant_config, urdf=urdf,
                       base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
-    driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
-        control_plant, a.ee_frame, scenario.period / 3.0, q0))
-    builder.Connect(driver.get_desired_state_output_port(),
-                    handles.plant.get_desired_state_input_port(handles.model_instance))
-    ee_sensor = builder.AddNamedSystem("ee_sensor", EndEffectorPoseSensor(
-        handles.plant, a.base_frame, a.ee_frame))
-    builder.Connect(handles.plant.get_body_poses_output_port(),
-                    ee_sensor.get_body_poses_input_port())
-    return _Arm(handles, control_plant, driver, ee_sensor, q0)
+    time_step = scenario.period / 3.0
+    if isinstance(a.driver, TwistCommand):
+        driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
+            control_plant, a.ee_frame, time_step, q0, velocity_scale=a.driver.velocity_scale))
+        builder.Connect(driver.get_desired_state_output_port(),
+                        handles.plant.get_desired_state_input_port(handles.model_instance))
+    else:
+        driver = add_pose_tracking_driver(builder, handles, control_plant, time_step,
+                                          velocity_scale=a.driver.velocity_scale)
+    context = control_plant.CreateDefaultContext()
+    control_plant.SetPositions(context, q0)
+    X_BE0 = control_plant.CalcRelativeTransform(
+        context, control_plant.GetFrameByName(a.base_frame),
+        control_plant.GetFrameByName(a.ee_frame)).GetAsMatrix4()
+    return _Arm(handles, control_plant, driver, q0, X_BE0)
 
 
 def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true):
@@ -201,7 +235,8 @@ def add_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, X_EC_true
 
 def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
                      X_EC_true) -> HandEyeCamera:
-    """The point-feature camera (a pose oracle), its noise sources, its X_WE input."""
+    """The point-feature camera (a pose oracle) reading the arm's body poses, and its noise
+    sources."""
     model = scenario.camera.model
     noise = model.pose_noise
     if isinstance(noise, So3PoseNoise):
@@ -213,8 +248,11 @@ def add_point_camera(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
         p_TQ=np.asarray(scenario.target.points, dtype=float),
         X_WT=transform_matrix(scenario.target.X_WT, "target.X_WT"), period=scenario.period,
         pixel_sigma=model.pixel_sigma, pose_noise_model=noise_model,
-        rotation_sigma=rotation_sigma, translation_sigma=noise.translation_sigma))
-    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), camera.get_X_WE_input_port())
+        rotation_sigma=rotation_sigma, translation_sigma=noise.translation_sigma,
+        plant=arm.handles.plant, base_frame_name=scenario.arm.base_frame,
+        ee_frame_name=scenario.arm.ee_frame))
+    builder.Connect(arm.handles.plant.get_body_poses_output_port(),
+                    camera.get_body_poses_input_port())
     add_noise_sources(builder, camera, ("pixel_noise", "pose_noise"), scenario.period)
     return camera
 
@@ -278,8 +316,11 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
         target, intrinsics, scenario.period, feature_ids=model.feature_ids_or_default(),
         **LOOP_DETECT_OPTIONS))
     builder.Connect(rendered.color_image_output_port(), detector.get_color_image_input_port())
-    pose = builder.AddNamedSystem("camera_pose", HandCameraPose(X_EC_true, scenario.period))
-    builder.Connect(arm.ee_sensor.get_X_WE_output_port(), pose.get_X_WE_input_port())
+    pose = builder.AddNamedSystem("camera_pose", HandCameraPose(
+        X_EC_true, scenario.period, plant=arm.handles.plant,
+        base_frame_name=scenario.arm.base_frame, ee_frame_name=scenario.arm.ee_frame))
+    builder.Connect(arm.handles.plant.get_body_poses_output_port(),
+                    pose.get_body_poses_input_port())
     recorder = None
     if model.frames_to_save:
         recorder = builder.AddNamedSystem("frame_recorder", FrameRecorder(
@@ -302,20 +343,57 @@ def connect_detector_to_calibrator(scenario: Scenario, builder: DiagramBuilder,
                         calibrator.get_X_CT_covariance_input_port())
 
 
-def add_detector_loggers(builder: DiagramBuilder, camera: RenderedCameraParts,
-                         period: float) -> dict:
-    """Loggers of the detector's ``found``, ``reprojection_rms``, ``num_points`` and
-    ``covariance``."""
-    loggers = {}
-    for name, port in {"detector_found": camera.detector.get_found_output_port(),
-                       "reprojection_rms": camera.detector.get_reprojection_rms_output_port(),
-                       "detector_num_points": camera.detector.get_num_points_output_port(),
-                       "detector_covariance": camera.detector.get_covariance_output_port(),
-                       }.items():
-        logger = LogVectorOutput(port, builder, period)
-        logger.set_name(f"log_{name}")
-        loggers[name] = logger
-    return loggers
+def detector_ports(camera: RenderedCameraParts) -> dict:
+    """The detector's ``found``, ``reprojection_rms``, ``num_points`` and ``covariance`` output
+    ports, by the names ``run_scenario`` logs them under."""
+    return {"detector_found": camera.detector.get_found_output_port(),
+            "reprojection_rms": camera.detector.get_reprojection_rms_output_port(),
+            "detector_num_points": camera.detector.get_num_points_output_port(),
+            "detector_covariance": camera.detector.get_covariance_output_port()}
+
+
+class LogSlice:
+    """One logged port of ``add_logger``'s single ``VectorLogSink``: ``FindLog(context)`` gives
+    its ``sample_times()``, ``data()`` (its rows of the log) and ``num_samples()``, like a
+    ``VectorLogSink`` of its own."""
+
+    def __init__(self, logger, start: int, stop: int):
+        self.logger, self.start, self.stop = logger, start, stop
+
+    def FindLog(self, context):
+        return _SlicedLog(self.logger.FindLog(context), self.start, self.stop)
+
+
+@dataclass
+class _SlicedLog:
+    log: object
+    start: int
+    stop: int
+
+    def sample_times(self):
+        return self.log.sample_times()
+
+    def data(self):
+        return self.log.data()[self.start:self.stop]
+
+    def num_samples(self) -> int:
+        return self.log.num_samples()
+
+
+def add_logger(builder: DiagramBuilder, ports: dict, period: float) -> dict:
+    """Logs every vector output port of ``ports`` ({name: port}) every ``period`` with one C++
+    ``Multiplexer`` and one ``VectorLogSink`` ("log"), rather than a logger per port (each system
+    costs time at every simulator step). Returns {name: LogSlice}."""
+    mux = builder.AddNamedSystem("log_multiplexer", Multiplexer(
+        [port.size() for port in ports.values()]))
+    slices, start = {}, 0
+    for i, (name, port) in enumerate(ports.items()):
+        builder.Connect(port, mux.get_input_port(i))
+        slices[name] = (start, start + port.size())
+        start += port.size()
+    logger = LogVectorOutput(mux.get_output_port(), builder, period)
+    logger.set_name("log")
+    return {name: LogSlice(logger, a, b) for name, (a, b) in slices.items()}
 
 
 @dataclass
@@ -377,39 +455,42 @@ def _detector_results(scenario: Scenario, loop, logs: dict, context) -> dict:
 def add_servo(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
               camera) -> VisualServoController:
     """The IBVS controller (with its self-calibration prelude), fed by the camera's features
-    and commanding the arm's driver."""
+    and commanding the arm's driver: a pose (integrated from the arm's start pose) or a
+    twist."""
     servo = builder.AddNamedSystem("servo", VisualServoController(
         intrinsics=intrinsics_of(scenario), p_TQ=target_points_T(scenario),
         desired_features=desired_features(scenario), gain=scenario.servo.gain,
         period=scenario.period, self_calibration_motions=self_calibration_motions(scenario),
         max_angular_speed=scenario.servo.max_angular_speed,
-        max_linear_speed=scenario.servo.max_linear_speed))
+        max_linear_speed=scenario.servo.max_linear_speed, X_BE_initial=arm.X_BE0))
     builder.Connect(camera.get_features_output_port(), servo.get_features_input_port())
     builder.Connect(camera.get_visible_output_port(), servo.get_visible_input_port())
     builder.Connect(camera.get_X_CT_output_port(), servo.get_X_CT_input_port())
-    builder.Connect(servo.get_command_output_port(), arm.driver.get_V_WE_E_command_input_port())
+    if isinstance(arm.driver, PoseTrackingDriver):
+        builder.Connect(servo.get_X_BE_desired_output_port(),
+                        arm.driver.X_BE_desired_input_port())
+    else:
+        builder.Connect(servo.get_command_output_port(),
+                        arm.driver.get_V_WE_E_command_input_port())
     return servo
 
 
-def add_robot_pose_sampler(scenario: Scenario, builder: DiagramBuilder, arm: _Arm):
-    """X_BE held from each camera trigger: a ``ZeroOrderHold`` for the point-feature camera
-    (which samples in the same discrete phase), a ``CameraTriggerSampler`` for a rendered one
-    (which samples in the unrestricted phase, where the detector renders its image)."""
-    if isinstance(scenario.camera.model, RenderedImages):
-        hold = CameraTriggerSampler(scenario.period, 12)
-    else:
-        hold = ZeroOrderHold(scenario.period, 12)
-    sampler = builder.AddNamedSystem("robot_pose_sampler", hold)
-    builder.Connect(arm.ee_sensor.get_X_BE_output_port(), sampler.get_input_port())
-    return sampler
+def robot_pose_at_trigger(camera):
+    """The output port of X_BE held from each camera trigger: the point-feature camera's own
+    ``X_BE`` (sampled with its image), or the rendered camera's ``HandCameraPose`` (which
+    samples in the unrestricted phase, where the detector renders its image)."""
+    if isinstance(camera, RenderedCameraParts):
+        return camera.pose.get_X_BE_output_port()
+    return camera.get_X_BE_output_port()
 
 
 def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camera,
                    servo) -> tuple[HandEyeCalibrator, object]:
     """The calibrator, fed by the robot pose sampled on the camera's clock (so that (X_BE, X_CT)
-    pairs are synchronous), the camera's measurement and the servo's phase."""
+    pairs are synchronous), the camera's measurement and the servo's phase. Returns it and the
+    output port of the sampled robot pose."""
     period = scenario.period
-    sampler = add_robot_pose_sampler(scenario, builder, arm)
+    sampled_X_BE = robot_pose_at_trigger(camera)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
     calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
         period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
@@ -417,10 +498,10 @@ def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camer
         num_self_calibration_motions=len(scenario.servo.self_calibration),
         init_method=scenario.calibrator.init_method,
         max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4))
-    builder.Connect(sampler.get_output_port(), calibrator.get_X_BE_input_port())
+    builder.Connect(sampled_X_BE, calibrator.get_X_BE_input_port())
     builder.Connect(camera.get_X_CT_output_port(), calibrator.get_X_CT_input_port())
     builder.Connect(servo.get_phase_output_port(), calibrator.get_phase_input_port())
-    return calibrator, sampler
+    return calibrator, sampled_X_BE
 
 
 def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
@@ -433,7 +514,8 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             matrix; False feeds the servo the constant ``X_CE_fixed`` (default: the scenario's
             guess) — the calibrator still runs, but open loop.
         meshcat: an optional ``pydrake.geometry.Meshcat`` to visualize the arm in.
-        with_loggers: add the VectorLogSinks ``run_scenario`` reads (off for a clean picture).
+        with_loggers: add the log ``run_scenario`` reads (off for a clean picture): one
+            ``VectorLogSink`` of all logged ports (``add_logger``).
 
     Exported ports: outputs ``X_EC_estimate``, ``features``, ``feature_error``,
     ``V_WE_E_command``, ``X_WC``.
@@ -445,7 +527,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     _check_start_visibility(scenario, arm, X_EC_true)
     camera = add_camera(scenario, builder, arm, X_EC_true)
     servo = add_servo(scenario, builder, arm, camera)
-    calibrator, sampler = add_calibrator(scenario, builder, arm, camera, servo)
+    calibrator, sampled_X_BE = add_calibrator(scenario, builder, arm, camera, servo)
     if isinstance(camera, RenderedCameraParts):
         connect_detector_to_calibrator(scenario, builder, camera, calibrator)
     if feedback:
@@ -464,7 +546,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
 
     loggers = {}
     if with_loggers:
-        for name, port in {
+        ports = {
             "X_EC_estimate": calibrator.get_X_EC_output_port(),
             "X_EC_two_motion": calibrator.get_two_motion_output_port(),
             "X_EC_std": calibrator.get_X_EC_std_output_port(),
@@ -476,15 +558,14 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             "visible": camera.get_visible_output_port(),
             "X_WC": camera.get_X_WC_output_port(),
             "V_WE_E_command": servo.get_command_output_port(),
-            "ik_status": arm.driver.get_status_output_port(),
-            "X_BE_sampled": sampler.get_output_port(),
+            "X_BE_sampled": sampled_X_BE,
             "X_CT_measured": camera.get_X_CT_output_port(),
-        }.items():
-            logger = LogVectorOutput(port, builder, scenario.period)
-            logger.set_name(f"log_{name}")
-            loggers[name] = logger
+            **({"ik_status": arm.driver.get_status_output_port()}
+               if isinstance(arm.driver, DifferentialIkDriver) else {}),
+        }
         if isinstance(camera, RenderedCameraParts):
-            loggers.update(add_detector_loggers(builder, camera, scenario.period))
+            ports.update(detector_ports(camera))
+        loggers = add_logger(builder, ports, scenario.period)
 
     if meshcat is not None:
         from .systems.visualization import add_meshcat_visualization
@@ -492,7 +573,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             builder, arm.handles.scene_graph, meshcat,
             transform_matrix(scenario.target.X_WT, "target.X_WT"),
             target_points_T(scenario), scenario.period,
-            camera.get_X_WC_output_port(), arm.ee_sensor.get_X_WE_output_port(),
+            camera.get_X_WC_output_port(), arm.pose_sensor(builder).get_X_WE_output_port(),
             calibrator.get_X_EC_output_port())
 
     diagram = builder.Build()
@@ -540,7 +621,9 @@ class ScenarioResult:
     calibrator_status: np.ndarray     # (K, 4): [mode, accepted, rejected, last NIS]
     X_EC_std: np.ndarray              # (K, 6): rotation (deg) and translation std of X_EC
     servo_status: np.ndarray
-    ik_status: np.ndarray
+    #: (K,) the ``!TwistCommand`` driver's DifferentialInverseKinematicsStatus per camera sample
+    #: (0 solution found); None with ``!PoseCommand`` (Drake's integrator logs a warning instead).
+    ik_status: np.ndarray | None
     X_WC: np.ndarray                  # (K, 4, 4) true camera poses
     X_BE_samples: np.ndarray          # (K, 4, 4) robot poses sampled at the camera trigger
     X_CT_samples: np.ndarray          # (K, 4, 4) the matching measured target poses
@@ -553,6 +636,9 @@ class ScenarioResult:
     diagnostics: list = field(default_factory=list)
     #: The run was stopped (Ctrl-C) before ``scenario.duration``.
     interrupted: bool = False
+    #: CPU time (s) of this process over the same span as ``wall_time`` (all its threads):
+    #: what the run cost, less sensitive than wall time to other processes on the machine.
+    cpu_time: float = float("nan")
     #: (K, 6) the servo's command [ω (rad/s); v (m/s)] in E.
     V_WE_E_command: np.ndarray | None = None
     #: Rendered camera only (None otherwise), per camera sample: the detector's found flag (1/0),
@@ -630,19 +716,20 @@ def run_scenario(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         simulator.set_monitor(monitor)
     if meshcat is not None:
         meshcat.StartRecording()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     interrupted = False
     try:
         simulator.Initialize()
         simulator.AdvanceTo(scenario.duration)
     except KeyboardInterrupt:
         interrupted = True
-    wall = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
     result = _collect_result(scenario, loop, context, wall)
     result.interrupted = interrupted
+    result.cpu_time = cpu
     return result
 
 
@@ -684,7 +771,7 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         desired_features=desired_features(scenario), phase=phase,
         calibrator_status=data["calibrator_status"], X_EC_std=data["X_EC_std"],
         servo_status=data["servo_status"][:, 0],
-        ik_status=data["ik_status"][:, 0],
+        ik_status=data["ik_status"][:, 0] if "ik_status" in data else None,
         X_WC=np.array([vector_to_pose(v) for v in data["X_WC"]]),
         X_BE_samples=np.array([vector_to_pose(v) for v in data["X_BE_sampled"]]),
         X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),

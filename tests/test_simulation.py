@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from handeye_drake.estimation.configs import PaperFilter, TargetFilter
+from handeye_drake.estimation.errors import rotation_error_deg
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp
-from handeye_drake.scenario import load_scenario
+from handeye_drake.scenario import TwistCommand, load_scenario
 from handeye_drake.simulation import build_diagram, run_scenario
 from handeye_drake.systems.calibrator import STATUS_FILTERING, STATUS_INIT_FAILED
 
@@ -42,7 +43,13 @@ def test_default_scenario_converges_and_refines(default_run):
     assert r.filter_updates > 300
     for name in ("features", "X_EC_estimates", "X_WC", "X_EC_std", "feature_error_px"):
         assert np.all(np.isfinite(getattr(r, name))), name
-    assert np.all(r.ik_status == 0)
+    # The servo commands a pose (Drake's integrator tracks it): each self-calibration motion
+    # turns the hand by its configured 20° (robot poses sampled at the camera trigger).
+    assert r.ik_status is None
+    k = [int(np.argmin(np.abs(r.times - t - r.scenario.period))) for t in (0.0, 2.0, 4.0)]
+    for a, b in zip(k, k[1:]):
+        assert rotation_error_deg(r.X_BE_samples[a], r.X_BE_samples[b]) == pytest.approx(
+            20.0, abs=0.1)
     # Self-calibration took the configured 2 × 2 s, and the estimate was the guess until then.
     assert r.servo_start_time == pytest.approx(4.0, abs=2.5 * r.scenario.period)
     np.testing.assert_allclose(r.X_EC_estimates[0], r.scenario.X_EC_guess_matrix(), atol=1e-12)
@@ -94,8 +101,12 @@ def test_same_seed_same_logs_different_seed_different_noise():
 def test_diagram_structure():
     loop = build_diagram(load_scenario())
     names = {s.get_name() for s in loop.diagram.GetSystems()}
-    assert {"plant", "scene_graph", "diff_ik", "ee_sensor", "camera", "servo", "calibrator",
-            "robot_pose_sampler", "pixel_noise_source", "pose_noise_source"} <= names
+    assert {"plant", "scene_graph", "diff_ik", "desired_state", "camera", "servo", "calibrator",
+            "pixel_noise_source", "pose_noise_source"} <= names
+    # The camera reads the plant's body poses and samples the robot pose with its image: no
+    # separate pose sensor or sampler (each Python system costs time at every step).
+    assert not {"ee_sensor", "robot_pose_sampler"} & names
+    assert loop.ee_sensor is None
     for port in ("X_EC_estimate", "features", "feature_error", "V_WE_E_command", "X_WC"):
         assert loop.diagram.HasOutputPort(port)
     dot = loop.diagram.GetGraphvizString(max_depth=1)
@@ -143,7 +154,21 @@ arm:
     assert r.feature_error_px[-1] < 2.0
     assert r.rotation_error_deg[-1] < r.initial_rotation_error_deg
     assert r.translation_error_rel[-1] < r.initial_translation_error_rel
+
+
+def test_the_twist_driver_gives_the_same_loop(default_run):
+    """``arm.driver: !TwistCommand`` (the Python differential-IK driver on the servo's twist):
+    every IK step solved, and the run ends where the pose-commanded one does — the same
+    calibration to within its reported σ, the same image to within the pixel noise."""
+    s = load_scenario()
+    s.arm.driver = TwistCommand()
+    r = run_scenario(s)
     assert np.all(r.ik_status == 0)
+    assert r.ik_status.shape == r.times.shape
+    std_deg = np.linalg.norm(r.X_EC_std[-1, :3])
+    assert abs(r.rotation_error_deg[-1] - default_run.rotation_error_deg[-1]) < std_deg
+    assert abs(r.feature_error_px[-1] - default_run.feature_error_px[-1]) < 0.5
+    assert r.diagnostics == []
 
 
 def test_a_failed_two_motion_start_is_reported():

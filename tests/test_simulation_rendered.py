@@ -202,13 +202,13 @@ camera:
     assert np.all(r.detector_found[servoing] == 0.0)
     assert np.all(r.servo_status[servoing] == STATUS_TOO_FEW_VISIBLE)
     assert np.all(r.V_WE_E_command[servoing] == 0.0)
-    # The camera comes to rest where the last self-calibration twist left it: the arm catches
-    # up its tracking lag with steps that only shrink (no jump; measured 0.26° and 0.18 mm in
-    # all), then stays still.
+    # The camera comes to rest where the last self-calibration motion left it: the arm catches
+    # up its tracking lag with steps that only shrink (no jump; measured 0.53° and 0.13 mm in
+    # all with the pose command, 0.26° and 0.18 mm with the twist driver), then stays still.
     X_WC = r.X_WC[servoing]
     steps_deg = [np.degrees(np.linalg.norm(rotation_log(b[:3, :3] @ a[:3, :3].T)))
                  for a, b in zip(X_WC[:-1], X_WC[1:])]
-    assert np.all(np.diff(steps_deg[:6]) < 0) and sum(steps_deg) < 0.4
+    assert np.all(np.diff(steps_deg[:6]) < 0) and sum(steps_deg) < 0.7
     assert np.linalg.norm(X_WC[-1][:3, 3] - X_WC[0][:3, 3]) < 0.3e-3
     assert max(steps_deg[-8:]) < 1e-6
     assert r.calibrator_mode == STATUS_COLLECTING
@@ -323,6 +323,10 @@ camera:
     assert (config.clipping_near, config.clipping_far) == (0.05, 3.0)
     assert loop.camera.detector.period == pytest.approx(1 / 15)
     assert loop.camera.rendered.intrinsics.width == 320
+    # One sampler of the trigger instant (X_WC and X_BE from the plant's body poses): no pose
+    # sensor or separate robot-pose sampler.
+    names = {system.get_name() for system in loop.diagram.GetSystems()}
+    assert "camera_pose" in names and not {"ee_sensor", "robot_pose_sampler"} & names
 
 
 def test_the_loop_systems_refuse_bad_arguments():

@@ -6,7 +6,9 @@
 
 Each figure is a ratio of two timings taken in the same run, interleaved (A, B, B, A, ...), as
 the median of ``--repeats`` timings, with BLAS pinned to one thread, so a loaded or slower machine
-moves both sides alike; the machine's load average is printed beside the table.
+moves both sides alike; the machine's load average is printed beside the table. The loop
+sections also print the ratio of the CPU times of the same runs (this process's CPU time over the
+same spans), which other processes sharing the cores distort less than wall time.
 
 Sections (``--sections``):
 
@@ -19,15 +21,23 @@ Sections (``--sections``):
   (recorded samples from C++ ``TrajectorySource``s, stepped by a ``Simulator``, its estimate
   logged) against the bare estimator's ``_update`` on the same samples (the final estimates must
   be equal).
-- ``loop``: the default closed loop (``run_scenario(load_scenario())``: arm, camera, servo,
-  calibrator, our differential-IK driver, loggers) against the same arm plant driven by Drake's
-  C++ ``DifferentialInverseKinematicsIntegrator`` (same time step, same joint limits) toward a
-  fixed pose under an end-effector speed limit — a constant twist — and nothing else. Target
-  ≤ 1.3×; both real-time factors are printed.
+- ``loop``: the default closed loop (``run_scenario(load_scenario())``: arm, camera, servo
+  commanding a pose, calibrator, Drake's C++ ``DifferentialInverseKinematicsIntegrator``
+  tracking the pose, the log) against the same arm plant driven by the same integrator (same
+  time step, same joint limits) toward a fixed pose under an end-effector speed limit — a
+  constant twist — and nothing else. Target ≤ 1.3×; both real-time factors are printed. The
+  same loop with ``arm.driver: !TwistCommand`` (our Python differential-IK driver on the servo's
+  twist) is timed beside them, and the reference with as many idle Python ``LeafSystem``s as the
+  loop has (no ports, no events: the simulator's cost of a Python system at each of its steps),
+  for comparison (no target).
 - ``rendered``: the rendered-camera loop (``run_scenario`` of ``scenarios/rendered.yaml``
   shortened to ``--rendered-duration`` s) against rendering the same frames with the same
   ``RgbdSensor`` at the same arm poses and running ``detect_target`` on them, alone (the
   detections must equal the loop's). Target ≤ 1.3×; per-frame render, detect and rest.
+- ``corners``: the corner-level fit of image inputs (``estimation.reprojection``, intrinsics
+  k1k2) on 100 and 1000 images × 48 corners against ``cv2.calibrateCamera`` (OpenCV's bundle
+  adjustment of per-image poses and shared intrinsics, C++) on the same corners; and its cost
+  per image at both sizes (``apps.speed_corners``).
 - ``calibrate``: ``handeye-drake calibrate`` (the whole command, in this process) on recordings
   of 10², 10³, 10⁴, 10⁵ camera samples made with ``recorded.example``'s pose model: time per
   pair and the growth exponent of the wall time (log-log fit), beside OpenCV's
@@ -55,7 +65,7 @@ import numpy as np
 from .outputs import check_output_file
 
 #: Sections in the order they run.
-SECTIONS = ("estimators", "calibrator", "loop", "rendered", "calibrate")
+SECTIONS = ("estimators", "calibrator", "loop", "rendered", "calibrate", "corners")
 #: Targets of the issue: largest accepted ratio per section.
 TARGETS = {"estimators": 1.5, "loop": 1.3, "rendered": 1.3}
 CALIBRATE_SIZES = (100, 1000, 10_000, 100_000)
@@ -485,11 +495,14 @@ def calibrator_section(repeats: int, num_samples: int = 300, log=print) -> list[
 # ---------------------------------------------------------------------------------------------
 # The closed loop vs the arm driven by Drake's C++ differential IK.
 
-def arm_reference_diagram(scenario, twist_duration: float | None = None):
+def arm_reference_diagram(scenario, twist_duration: float | None = None,
+                          idle_python_systems: int = 0):
     """The scenario's arm plant (same ``plant_config``, same start) driven by Drake's C++
     ``DifferentialInverseKinematicsIntegrator`` at our driver's time step and joint limits,
     toward a fixed pose reached at a constant end-effector twist (its speed limits) — and nothing
-    else. Returns (diagram, integrator, plant, q0)."""
+    else, but ``idle_python_systems`` Python ``LeafSystem``s without ports or events (what
+    Python systems cost the simulator by being there). Returns (diagram, integrator, plant,
+    q0)."""
     from pydrake.common.value import AbstractValue
     from pydrake.math import RigidTransform
     from pydrake.multibody.inverse_kinematics import (
@@ -514,7 +527,7 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None):
                       base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
     control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame, X_WB=X_WB)
     n = control.num_positions()
-    dt = scenario.period / 3.0  # our DifferentialIkDriver's step
+    dt = scenario.period / 3.0  # the loop's driver step (simulation.add_arm_with_driver)
     params = DifferentialInverseKinematicsParameters(n, n)
     params.set_joint_position_limits((control.GetPositionLowerLimits(),
                                       control.GetPositionUpperLimits()))
@@ -541,45 +554,92 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None):
     builder.Connect(ik.get_output_port(), to_state.get_input_port())
     builder.Connect(to_state.get_output_port(),
                     handles.plant.get_desired_state_input_port(handles.model_instance))
+    from pydrake.systems.framework import LeafSystem
+    for k in range(idle_python_systems):
+        builder.AddNamedSystem(f"idle_python_{k}", LeafSystem())
     return builder.Build(), ik, handles.plant, q0
 
 
 def loop_section(repeats: int, log=print) -> list[dict]:
     """The default closed loop (``run_scenario``'s simulation time) against the arm alone driven
-    by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration."""
+    by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration;
+    beside them the loop with the twist driver, and the reference with as many idle Python
+    systems as the loop has (no target: what they cost)."""
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-    from ..scenario import load_scenario
-    from ..simulation import run_scenario
+    from ..scenario import TwistCommand, load_scenario
+    from ..simulation import build_diagram, run_scenario
 
     scenario = load_scenario()
+    twist = load_scenario()
+    twist.arm.driver = TwistCommand()
     diagram, ik, plant, q0 = arm_reference_diagram(scenario)
+    # The loop's own Python systems (camera, servo, calibrator): each costs the simulator time
+    # at every step even when idle; the reference with as many idle ones shows that cost.
+    python_systems = [sys_ for sys_ in build_diagram(scenario, with_loggers=False).diagram
+                      .GetSystems() if type(sys_).__module__.startswith("handeye_drake")]
+    idle = arm_reference_diagram(scenario, idle_python_systems=len(python_systems))
 
-    def reference():
+    def simulate(diagram, ik):
         simulator = Simulator(diagram)
         ApplySimulatorConfig(scenario.simulator_config, simulator)
         context = simulator.get_mutable_context()
         ik.SetPositions(ik.GetMyMutableContextFromRoot(context), q0)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         simulator.Initialize()
         simulator.AdvanceTo(scenario.duration)
-        return time.perf_counter() - start, None
+        return time.perf_counter() - start, time.process_time() - cpu
+
+    def reference():
+        seconds, cpu = simulate(diagram, ik)
+        cpu_times["reference"].append(cpu)
+        return seconds, None
+
+    def idle_reference():
+        seconds, cpu = simulate(idle[0], idle[1])
+        cpu_times["idle"].append(cpu)
+        return seconds, None
+
+    cpu_times = {"reference": [], "loop": [], "twist": [], "idle": []}
 
     def loop():
         result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo, as above
+        cpu_times["loop"].append(result.cpu_time)
         return result.wall_time, result
 
-    timings = interleaved({"loop": loop, "reference": reference}, repeats)
-    summary = timings["loop"][2].summary()
-    ours, ref = timings["loop"][0], timings["reference"][0]
-    row = {"section": "loop", "what": f"closed loop (default scenario, {scenario.duration:g} s "
-           f"simulated; real-time factor {scenario.duration / ours:.2f})", "value_us": ours,
-           "unit": "s", "reference": f"arm + C++ DifferentialInverseKinematicsIntegrator "
-           f"(real-time factor {scenario.duration / ref:.2f})", "reference_us": ref,
-           "ratio": ours / ref, "target": TARGETS["loop"],
-           "final_rotation_error_deg": summary["final_rotation_error_deg"]}
-    log(_format_row(row))
-    return [row]
+    def twist_loop():
+        result = run_scenario(twist)
+        cpu_times["twist"].append(result.cpu_time)
+        return result.wall_time, result
+
+    timings = interleaved({"loop": loop, "reference": reference, "twist": twist_loop,
+                           "idle": idle_reference}, repeats)
+    ref = timings["reference"][0]
+    reference_text = (f"arm + C++ DifferentialInverseKinematicsIntegrator (real-time factor "
+                      f"{scenario.duration / ref:.2f})")
+    rows = []
+    for key, what, target in (
+            ("loop", "closed loop (default scenario: pose command", TARGETS["loop"]),
+            ("twist", "closed loop with arm.driver: !TwistCommand (Python IK driver", None)):
+        ours = timings[key][0]
+        summary = timings[key][2].summary()
+        cpu_ratio = statistics.median(cpu_times[key]) / statistics.median(cpu_times["reference"])
+        rows.append({"section": "loop", "what": f"{what}, {scenario.duration:g} s simulated; "
+                     f"real-time factor {scenario.duration / ours:.2f})", "value_us": ours,
+                     "unit": "s", "reference": reference_text, "reference_us": ref,
+                     "ratio": ours / ref, "target": target, "cpu_ratio": cpu_ratio,
+                     "final_rotation_error_deg": summary["final_rotation_error_deg"]})
+        log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    ours = timings["idle"][0]
+    cpu_ratio = statistics.median(cpu_times["idle"]) / statistics.median(cpu_times["reference"])
+    rows.append({"section": "loop", "what": f"the reference with {len(python_systems)} idle "
+                 "Python LeafSystems (as many as the loop has: "
+                 f"{', '.join(sorted(sys_.get_name() for sys_ in python_systems))})",
+                 "value_us": ours, "unit": "s", "reference": "the reference",
+                 "reference_us": ref, "ratio": ours / ref, "target": None,
+                 "cpu_ratio": cpu_ratio})
+    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    return rows
 
 
 # ---------------------------------------------------------------------------------------------
@@ -667,13 +727,13 @@ def rendered_reference(scenario):
     target, intrinsics = parts.detector.target, parts.detector.intrinsics
     options = parts.detect_options
 
-    def run(Q):
+    def run(Q, cpu_times=None):
         context = diagram.CreateDefaultContext()  # (as the Simulator's, made before timing)
         plant_context = plant.GetMyMutableContextFromRoot(context)
         camera_context = camera_system.GetMyContextFromRoot(context)
         render = detect = 0.0
         detections = []
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for q in Q:
             plant.SetPositions(plant_context, q)
             t0 = time.perf_counter()
@@ -684,6 +744,8 @@ def rendered_reference(scenario):
             t2 = time.perf_counter()
             render += t1 - t0
             detect += t2 - t1
+        if cpu_times is not None:  # (the CPU time of the same span)
+            cpu_times.append(time.process_time() - cpu)
         return time.perf_counter() - start, (render, detect, detections)
 
     return run
@@ -739,13 +801,15 @@ def rendered_section(repeats: int, log=print, duration: float = RENDERED_DURATIO
                                np.radians(a.q0_deg))
     reference_run = rendered_reference(scenario)
     costs = []  # (render s, detect s) of every reference run
+    cpu_times = {"loop": [], "reference": []}
 
     def loop():
         result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo
+        cpu_times["loop"].append(result.cpu_time)
         return result.wall_time, result
 
     def reference():
-        seconds, out = reference_run(Q)
+        seconds, out = reference_run(Q, cpu_times["reference"])
         costs.append(out[:2])
         return seconds, out
 
@@ -769,9 +833,11 @@ def rendered_section(repeats: int, log=print, duration: float = RENDERED_DURATIO
            "target": TARGETS["rendered"], "frames": frames,
            "per_frame_ms": {"loop": 1e3 * ours / frames, "render": render_ms,
                             "detect": detect_ms, "rest": 1e3 * (ours - ref) / frames},
+           "cpu_ratio": statistics.median(cpu_times["loop"])
+           / statistics.median(cpu_times["reference"]),
            "found_frames": int(np.sum(result.detector_found > 0.5)),
            "max_X_CT_difference": diff}
-    log(_format_row(row))
+    log(_format_row(row) + f"; CPU time ratio {row['cpu_ratio']:.2f}×")
     pf = row["per_frame_ms"]
     log(f"  per frame: loop {pf['loop']:.1f} ms = render {pf['render']:.1f} ms + detect "
         f"{pf['detect']:.1f} ms + rest {pf['rest']:.1f} ms (arm simulation, servo, calibrator, "
@@ -955,6 +1021,9 @@ def run_speed_benchmark(sections=SECTIONS, repeats: int = 7, loop_repeats: int =
         elif section == "rendered":
             report["rows"] += rendered_section(loop_repeats, log=log,
                                                duration=rendered_duration)
+        elif section == "corners":
+            from .speed_corners import corners_section
+            report["rows"] += corners_section(log=log)
         else:
             report["rows"] += calibrate_section(calibrate_sizes, log=log)
     report["load_average_after"] = load_average()

@@ -1,6 +1,8 @@
 """Drake LeafSystems of the closed loop, one per module (see each class's docstring for ports).
 
-    arm.py           add_arm, make_control_plant, DifferentialIkDriver, EndEffectorPoseSensor
+    arm.py           add_arm, make_control_plant, add_pose_tracking_driver (Drake's C++
+                     differential-IK integrator tracking a commanded pose), DifferentialIkDriver
+                     (a commanded twist), EndEffectorPoseSensor, frame_in_body
     camera.py        HandEyeCamera
     servo.py         VisualServoController
     calibrator.py    HandEyeCalibrator, add_hand_eye_calibrator (into any diagram)
@@ -9,12 +11,14 @@
                         camera_config, RenderedCamera (functions: RgbdSensor + textured target)
     image_downsampler.py ImageAreaDownsampler (supersampling of rendered images)
     target_detector.py TargetDetector
-    camera_pose.py   HandCameraPose (true X_WC of a rendered camera, for logs and Meshcat)
+    camera_pose.py   HandCameraPose (true X_WC of a rendered camera, for logs and Meshcat, and
+                     the robot pose X_BE of the same instant)
     trigger_sampler.py CameraTriggerSampler (robot pose held from a rendered camera's trigger)
     frame_recorder.py FrameRecorder (a few rendered frames kept for pictures)
 """
 
-from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor, add_arm,
+from .arm import (UR5E_HOME_Q, UR5E_URDF, DifferentialIkDriver, EndEffectorPoseSensor,
+                  PoseTrackingDriver, add_arm, add_pose_tracking_driver, frame_in_body,
                   make_control_plant)
 from .calibrator import HandEyeCalibrator, add_hand_eye_calibrator
 from .camera import HandEyeCamera
@@ -29,7 +33,8 @@ from .target_detector import TargetDetector
 from .trigger_sampler import CameraTriggerSampler
 
 __all__ = ["CameraTriggerSampler", "DifferentialIkDriver", "EndEffectorPoseSensor",
-           "FrameRecorder", "HandCameraPose", "HandEyeCalibrator", "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
+           "FrameRecorder", "HandCameraPose", "PoseTrackingDriver", "add_pose_tracking_driver",
+           "frame_in_body", "HandEyeCalibrator", "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
            "SelfCalibrationMotion", "TargetDetector", "UR5E_HOME_Q", "UR5E_URDF",
            "VisualServoController", "add_arm", "add_hand_eye_calibrator", "add_rendered_camera", "add_target_geometry",
            "camera_config", "make_control_plant", "mount_rendered_camera"]

@@ -1,6 +1,7 @@
-"""The robot arm of the simulation: a PD-controlled MultibodyPlant arm, a differential-IK driver
-that turns the visual servo's end-effector twist into joint commands, and an end-effector pose
-sensor.
+"""The robot arm of the simulation: a PD-controlled MultibodyPlant arm, its drivers — Drake's C++
+differential-IK integrator tracking a commanded end-effector pose (``add_pose_tracking_driver``),
+or a Python differential-IK driver turning a commanded twist into joint set points
+(``DifferentialIkDriver``) — and an end-effector pose sensor.
 
 Everything here is generic: any URDF/SDFormat arm whose joints are all 1-DOF and actuated plugs in
 the same way (``urdf=..., base_frame=..., ee_frame=...``); the bundled model is a UR5e
@@ -10,7 +11,13 @@ Frames: W world, B robot base (``base_frame``, welded to W at ``X_WB``), E end-e
 (``ee_frame``, the UR5e flange ``tool0`` = DH frame 6). Twists are [ω; v] (rad/s, m/s), poses on
 ports are 12-vectors [vec_row(R); p] (see ``handeye_drake.estimation.se3.pose_to_vector``).
 
-Typical wiring::
+Typical wiring (a servo commanding a pose X_BE_desired)::
+
+    arm = add_arm(builder)
+    driver = add_pose_tracking_driver(builder, arm, make_control_plant(), 0.01)
+    builder.Connect(servo.get_X_BE_desired_output_port(), driver.X_BE_desired_input_port())
+
+or (a servo commanding a twist)::
 
     arm = add_arm(builder)
     driver = builder.AddSystem(DifferentialIkDriver(make_control_plant(), arm.ee_frame, 0.002,
@@ -31,6 +38,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.inverse_kinematics import (
+    DifferentialInverseKinematicsIntegrator,
     DifferentialInverseKinematicsParameters,
     DifferentialInverseKinematicsStatus,
     DoDifferentialInverseKinematics,
@@ -39,6 +47,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import MatrixGain, StateInterpolatorWithDiscreteDerivative
 
 from ..estimation.se3 import inverse, pose_to_vector
 from ..estimation.validation import as_matrix, as_transform, check_positive
@@ -115,6 +124,16 @@ def _check_frame(plant: MultibodyPlant, name, arg: str, model_instance=None):
             else plant.GetFrameByName(name, model_instance))
 
 
+def frame_in_body(plant: MultibodyPlant, name: str, arg: str):
+    """(body index (int), X_BodyF 4×4): where the frame called ``name`` of a finalized ``plant``
+    sits, to read its pose from the plant's ``body_poses`` output (X_WF = X_WBody · X_BodyF).
+    ValueError naming ``arg`` for an unknown or ambiguous name."""
+    if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
+        raise ValueError(f"plant: expected a finalized MultibodyPlant, got {type(plant).__name__}")
+    frame = _check_frame(plant, name, arg)
+    return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
+
+
 def _per_actuator(value, name: str, n: int) -> np.ndarray:
     v = np.full(n, value, dtype=float) if np.ndim(value) == 0 else value
     v = as_matrix(v, name, (n,))
@@ -188,6 +207,98 @@ def make_control_plant(urdf=None, base_frame: str = "base_link", X_WB=None) -> M
     _parse_arm(plant, urdf, base_frame, X_WB)
     plant.Finalize()
     return plant
+
+
+def _check_arm_plant(control_plant) -> int:
+    """n, for a finalized plant whose joints are all 1-DOF and actuated; else ValueError."""
+    if not isinstance(control_plant, MultibodyPlant) or not control_plant.is_finalized():
+        raise ValueError("control_plant: expected a finalized MultibodyPlant, got "
+                         f"{type(control_plant).__name__}")
+    n = control_plant.num_positions()
+    if n == 0 or control_plant.num_velocities() != n or control_plant.num_actuators() != n:
+        raise ValueError(
+            "control_plant: needs an arm whose joints are all 1-DOF and actuated, got "
+            f"{n} positions, {control_plant.num_velocities()} velocities, "
+            f"{control_plant.num_actuators()} actuators")
+    return n
+
+
+def _actuator_permutation(control_plant) -> np.ndarray:
+    """(2n × 2n) P with [q; v] in actuator order = P · [q; v] in joint (state) order."""
+    n = control_plant.num_positions()
+    actuators = [control_plant.get_joint_actuator(i)
+                 for i in control_plant.GetJointActuatorIndices()]
+    P = np.zeros((2 * n, 2 * n))
+    for k, a in enumerate(actuators):
+        P[k, a.joint().position_start()] = 1.0
+        P[n + k, n + a.joint().velocity_start()] = 1.0
+    return P
+
+
+@dataclass(frozen=True, eq=False)
+class PoseTrackingDriver:
+    """What ``add_pose_tracking_driver`` added: Drake's ``DifferentialInverseKinematicsIntegrator``
+    (``integrator``, its ``joint_positions`` output the commanded q) and the
+    ``StateInterpolatorWithDiscreteDerivative`` (``interpolator``) that makes [q; v] of it."""
+
+    integrator: DifferentialInverseKinematicsIntegrator
+    interpolator: StateInterpolatorWithDiscreteDerivative
+    time_step: float
+
+    def X_BE_desired_input_port(self):
+        """The integrator's ``X_AE_desired`` (abstract RigidTransform): E in the base frame B."""
+        return self.integrator.GetInputPort("X_AE_desired")
+
+
+def add_pose_tracking_driver(builder: DiagramBuilder, arm: ArmHandles,
+                             control_plant: MultibodyPlant, time_step: float,
+                             velocity_scale: float = 1.0) -> PoseTrackingDriver:
+    """Drives ``arm`` toward a commanded end-effector pose with Drake's C++ systems only.
+
+    Every ``time_step`` the ``DifferentialInverseKinematicsIntegrator`` (frame A = the arm's
+    base B, E = ``arm.ee_frame`` of ``control_plant``) solves Drake's differential IK toward the
+    pose on its ``X_AE_desired`` input under the plant's joint position limits and
+    ``velocity_scale`` × its joint velocity limits, and integrates its joint command q; a
+    ``StateInterpolatorWithDiscreteDerivative`` at the same step turns q into the set point
+    [q (rad); v (rad/s)] of the plant's PD controllers (a C++ ``MatrixGain`` reorders it when the
+    actuator order differs from the joint order). The integrator starts from the plant's state at
+    initialization (its ``robot_state`` input is the plant's state; ``use_robot_state`` stays
+    unconnected, so it integrates its own command, open loop like a robot's position interface).
+    A pose the limits do not let it reach is approached as far as they allow (Drake's kStuck).
+
+    ``control_plant``: the arm alone, finalized, every joint 1-DOF and actuated, actuators in the
+    same order as in ``arm.plant`` (``make_control_plant(arm.urdf, arm.base_frame, arm.X_WB)``).
+    """
+    n = _check_arm_plant(control_plant)
+    time_step = check_positive(time_step, "time_step")
+    velocity_scale = check_positive(velocity_scale, "velocity_scale")
+    if velocity_scale > 1.0:
+        raise ValueError(f"velocity_scale: must be in (0, 1], got {velocity_scale!r}")
+    frame_B = _check_frame(control_plant, arm.base_frame, "base_frame")
+    frame_E = _check_frame(control_plant, arm.ee_frame, "ee_frame")
+    params = DifferentialInverseKinematicsParameters(n, n)
+    params.set_joint_position_limits((control_plant.GetPositionLowerLimits(),
+                                      control_plant.GetPositionUpperLimits()))
+    params.set_joint_velocity_limits(
+        (velocity_scale * control_plant.GetVelocityLowerLimits(),
+         velocity_scale * control_plant.GetVelocityUpperLimits()))
+    integrator = builder.AddNamedSystem("diff_ik", DifferentialInverseKinematicsIntegrator(
+        control_plant, frame_B, frame_E, time_step, params))
+    builder.Connect(arm.plant.get_state_output_port(arm.model_instance),
+                    integrator.GetInputPort("robot_state"))
+    interpolator = builder.AddNamedSystem("desired_state", StateInterpolatorWithDiscreteDerivative(
+        n, time_step, suppress_initial_transient=True))
+    builder.Connect(integrator.GetOutputPort("joint_positions"), interpolator.get_input_port())
+    desired = arm.plant.get_desired_state_input_port(arm.model_instance)
+    P = _actuator_permutation(control_plant)
+    if np.array_equal(P, np.eye(2 * n)):
+        builder.Connect(interpolator.get_output_port(), desired)
+    else:
+        reorder = builder.AddNamedSystem("actuator_order", MatrixGain(P))
+        builder.Connect(interpolator.get_output_port(), reorder.get_input_port())
+        builder.Connect(reorder.get_output_port(), desired)
+    return PoseTrackingDriver(integrator=integrator, interpolator=interpolator,
+                              time_step=time_step)
 
 
 class DifferentialIkDriver(LeafSystem):

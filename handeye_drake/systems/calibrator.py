@@ -301,21 +301,21 @@ class HandEyeCalibrator(LeafSystem):
             discrete_state.set_value(self._mode_index, [STATUS_INIT_FAILED])
             return
         phase = float(self._phase_port.Eval(context)[0])
-        keys = context.get_discrete_state(self._keys_index).get_value().copy()
+        # discrete_state holds a copy of the current state: the new sample is written into its
+        # buffers in place (copying the whole buffer at every sample cost more than the rest).
+        keys = discrete_state.get_mutable_vector(self._keys_index).get_mutable_value()
         num_keys = int(context.get_discrete_state(self._num_keys_index).get_value()[0])
         # Key frame 0 is the first sample; key frame k+1 the first sample of phase ≥ k+1.
         if num_keys == 0 or phase >= num_keys:
             keys[num_keys * _SAMPLE:(num_keys + 1) * _SAMPLE] = sample
             num_keys += 1
-            discrete_state.set_value(self._keys_index, keys)
             discrete_state.set_value(self._num_keys_index, [num_keys])
-        buffer = context.get_discrete_state(self._buffer_index).get_value().copy()
+        buffer = discrete_state.get_mutable_vector(self._buffer_index).get_mutable_value()
         num_buffered = int(context.get_discrete_state(self._num_buffered_index).get_value()[0])
         sample_buffered = num_buffered < self._capacity
         if sample_buffered:
             buffer[num_buffered * _SAMPLE:(num_buffered + 1) * _SAMPLE] = sample
             num_buffered += 1
-            discrete_state.set_value(self._buffer_index, buffer)
             discrete_state.set_value(self._num_buffered_index, [num_buffered])
         if num_keys < self._M + 1:
             return

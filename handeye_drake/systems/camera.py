@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common import RandomDistribution
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
 from ..estimation.se3 import inverse, pose_to_vector, rotation_exp, vector_to_pose
@@ -43,8 +45,15 @@ class HandEyeCamera(LeafSystem):
     Invisible points are reported through ``visible``; their ``features`` entries hold the
     noiseless projection if the point is in front of the camera, else 0.
 
+    With ``plant`` (the arm's MultibodyPlant) it reads the end-effector pose from the plant
+    itself, so the loop needs no separate pose sensor, and also holds the robot pose X_BE of the
+    same instant (E in the robot base B, what the robot reports at the camera trigger).
+
     Input ports:
-        X_WE (12): end-effector pose in world, [vec_row(R); p] (length unit of the poses).
+        X_WE (12): end-effector pose in world, [vec_row(R); p] (length unit of the poses);
+            without ``plant``.
+        body_poses (abstract, list of RigidTransform X_W·Body by BodyIndex): with ``plant``,
+            instead of X_WE; connect ``plant.get_body_poses_output_port()``.
         pixel_noise (2N, random Gaussian): standard-normal samples, scaled by pixel_sigma inside.
         pose_noise (12, random Gaussian): standard-normal samples; the first 9 ("paper") or the
             first 3 ("so3") perturb the rotation, the last 3 the translation (see
@@ -59,11 +68,14 @@ class HandEyeCamera(LeafSystem):
         X_CT_measured (12): noisy pose of T in C, [vec_row(R); p]; R is not orthonormal under the
             "paper" noise model.
         X_WC (12): true pose of C in W.
+        X_BE (12): the end-effector pose in the base frame B at the sample (with ``plant``;
+            without one B = W: the X_WE sample).
     """
 
     def __init__(self, intrinsics: CameraIntrinsics, X_EC, p_TQ, X_WT, period: float,
                  pixel_sigma: float = 0.0, pose_noise_model: str = "paper",
-                 rotation_sigma: float = 0.0, translation_sigma: float = 0.0):
+                 rotation_sigma: float = 0.0, translation_sigma: float = 0.0, plant=None,
+                 base_frame_name: str = "base_link", ee_frame_name: str = "tool0"):
         LeafSystem.__init__(self)
         if not isinstance(intrinsics, CameraIntrinsics):
             raise ValueError(f"intrinsics: expected a CameraIntrinsics, got "
@@ -85,7 +97,16 @@ class HandEyeCamera(LeafSystem):
         self._K2 = intrinsics.K[:2, :2]
         self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
 
-        self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
+        if plant is None:
+            self._frames = None
+            self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
+        else:
+            from .arm import frame_in_body
+            # (body index, pose of the frame in its body) of B and E, resolved once.
+            self._frames = (frame_in_body(plant, base_frame_name, "base_frame_name"),
+                            frame_in_body(plant, ee_frame_name, "ee_frame_name"))
+            self._X_WE_port = self.DeclareAbstractInputPort(
+                "body_poses", AbstractValue.Make([RigidTransform()]))
         self._pixel_noise_port = self.DeclareVectorInputPort(
             "pixel_noise", 2 * n, RandomDistribution.kGaussian)
         self._pose_noise_port = self.DeclareVectorInputPort(
@@ -96,6 +117,7 @@ class HandEyeCamera(LeafSystem):
         self._visible_index = self.DeclareDiscreteState(n)
         self._X_CT_index = self.DeclareDiscreteState(_IDENTITY_POSE)
         self._X_WC_index = self.DeclareDiscreteState(_IDENTITY_POSE)
+        self._X_BE_index = self.DeclareDiscreteState(_IDENTITY_POSE)
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateImage)
         self.DeclareInitializationDiscreteUpdateEvent(self._UpdateImage)
 
@@ -103,10 +125,14 @@ class HandEyeCamera(LeafSystem):
         self._visible_port = self.DeclareStateOutputPort("visible", self._visible_index)
         self._X_CT_port = self.DeclareStateOutputPort("X_CT_measured", self._X_CT_index)
         self._X_WC_port = self.DeclareStateOutputPort("X_WC", self._X_WC_index)
+        self._X_BE_port = self.DeclareStateOutputPort("X_BE", self._X_BE_index)
 
 
     # Ports, as members so users can wire them by handle.
     def get_X_WE_input_port(self):
+        if self._frames is not None:
+            raise ValueError("this HandEyeCamera reads the plant's body poses (constructed with "
+                             "a plant): use get_body_poses_input_port")
         return self._X_WE_port
 
     def get_pixel_noise_input_port(self):
@@ -126,6 +152,15 @@ class HandEyeCamera(LeafSystem):
 
     def get_X_WC_output_port(self):
         return self._X_WC_port
+
+    def get_X_BE_output_port(self):
+        return self._X_BE_port
+
+    def get_body_poses_input_port(self):
+        if self._frames is None:
+            raise ValueError("this HandEyeCamera takes X_WE (constructed without a plant): use "
+                             "get_X_WE_input_port")
+        return self._X_WE_port
 
     # Read-only accessors (numpy copies) for scenarios and tests.
     @property
@@ -173,11 +208,19 @@ class HandEyeCamera(LeafSystem):
     def _UpdateImage(self, context, discrete_state):
         # The per-sample path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
         # the settings checked once in the constructor (tests check it equals them exactly).
-        x = self._X_WE_port.Eval(context)
+        if self._frames is None:
+            x = self._X_WE_port.Eval(context)
+            X_BE = None
+        else:  # the arithmetic of EndEffectorPoseSensor's X_WE and X_BE
+            poses = self._X_WE_port.Eval(context)
+            (iB, X_BodyB), (iE, X_BodyE) = self._frames
+            X_WE_plant = poses[iE].GetAsMatrix4() @ X_BodyE
+            X_BE = inverse(poses[iB].GetAsMatrix4() @ X_BodyB) @ X_WE_plant
+            x = pose_to_vector(X_WE_plant)
         if not np.isfinite(x).all():
             raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
                              f"values at t = {context.get_time()}")
-        X_WE = vector_to_pose(x)
+        X_WE = vector_to_pose(x) if X_BE is None else X_WE_plant
         if not _is_rotation(x):
             raise ValueError(f"X_WE input of {self.get_name()!r}: rotation block is not a "
                              f"rotation matrix at t = {context.get_time()}: {x[:9].tolist()}")
@@ -188,7 +231,10 @@ class HandEyeCamera(LeafSystem):
 
         if self._pixel_sigma > 0:
             noise = self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
-            uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
+            if in_image.all():  # (the usual case: no boolean indexing)
+                uv += self._pixel_sigma * noise.reshape(-1, 2)
+            else:
+                uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
         if self._rotation_sigma > 0 or self._translation_sigma > 0:
             noise = self._EvalNoise(self._pose_noise_port, context, 12)
             X_CT_measured = X_CT.copy()
@@ -205,13 +251,17 @@ class HandEyeCamera(LeafSystem):
         discrete_state.set_value(self._visible_index, in_image.astype(float))
         discrete_state.set_value(self._X_CT_index, pose_to_vector(X_CT_measured))
         discrete_state.set_value(self._X_WC_index, pose_to_vector(X_WC))
+        discrete_state.set_value(self._X_BE_index, x if X_BE is None else pose_to_vector(X_BE))
 
     def _project(self, p_CQ):
         """``project_points(p_CQ, intrinsics, MIN_DEPTH)`` without its checks: (uv, in_image)."""
         Z = p_CQ[:, 2]
         in_front = Z > MIN_DEPTH
-        uv = np.zeros((p_CQ.shape[0], 2))
-        if in_front.any():
+        if in_front.all():  # (the usual case: no boolean indexing)
+            uv = (p_CQ[:, :2] / Z[:, None]) @ self._K2.T + self._principal_point
+        else:
+            uv = np.zeros((p_CQ.shape[0], 2))
+        if in_front.any() and not in_front.all():
             xy = p_CQ[in_front, :2] / Z[in_front, None]
             uv[in_front] = xy @ self._K2.T + self._principal_point
         in_image = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] < self._intrinsics.width)

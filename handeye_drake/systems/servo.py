@@ -9,10 +9,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import twist_transform, vector_to_pose
-from ..estimation.validation import as_matrix, check_positive, rotation_defect
+from ..estimation.se3 import pose_to_vector, skew
+from ..estimation.validation import as_matrix, as_transform, check_positive, rotation_defect
 from ..vision.camera_model import (
     MIN_DEPTH,
     CameraIntrinsics,
@@ -66,6 +68,15 @@ class VisualServoController(LeafSystem):
     e_k − λ·period·e_{k−2}, stable for λ·period < 0.618 (keep it ≲ 0.2 for a smooth decay). At
     t = 0 no image exists yet, so the initialization sample reports STATUS_TOO_FEW_VISIBLE.
 
+    The commanded pose: the servo also integrates its held twist into a desired end-effector
+    pose, X_BE_desired(t) = X_k · exp(V_k (t − t_k)) on (t_k, t_{k+1}] (the SE(3) exponential
+    of the body twist, E's motion under a constant twist expressed in E), with X_k the desired
+    pose reached at the end of the previous period — starting at ``X_BE_initial`` (the robot's
+    start pose; B is the base frame of whatever tracks it). A servo-to-pose robot interface
+    (e.g. Drake's ``DifferentialInverseKinematicsIntegrator`` with frame A = B) tracks it; the
+    twist output serves a velocity interface. The desired pose does not wait for the arm: a
+    motion the arm cannot follow (joint limits) is still commanded.
+
     Input ports:
         features (2N): current pixels [u0, v0, u1, v1, …] (px).
         visible (N): 1.0 for visible points (> 0.5 counts as visible).
@@ -79,12 +90,19 @@ class VisualServoController(LeafSystem):
         feature_error (1): RMS over usable points of ‖s_i − s*_i‖ (px); held when no point is
             usable.
         status (1): STATUS_OK (0), STATUS_TOO_FEW_VISIBLE (1) or STATUS_INVALID_ESTIMATE (2).
+        X_BE_desired (abstract RigidTransform): the commanded pose of E in B (m), a function of
+            time and the state (computed when read: once per step of the pose tracker).
+
+    Discrete state: one group per vector output, and [X_k ([vec_row(R); p]); t_k; V_k] of the
+    commanded pose.
     """
 
     def __init__(self, intrinsics: CameraIntrinsics, p_TQ, desired_features, gain: float,
                  period: float, self_calibration_motions=(), max_angular_speed: float = 1.0,
-                 max_linear_speed: float = 0.5, min_visible: int = 3):
+                 max_linear_speed: float = 0.5, min_visible: int = 3, X_BE_initial=None):
         LeafSystem.__init__(self)
+        X_BE0 = np.eye(4) if X_BE_initial is None else as_transform(X_BE_initial,
+                                                                     "X_BE_initial")
         if not isinstance(intrinsics, CameraIntrinsics):
             raise ValueError(f"intrinsics: expected a CameraIntrinsics, got "
                              f"{type(intrinsics).__name__}")
@@ -146,6 +164,10 @@ class VisualServoController(LeafSystem):
         self._phase_index = self.DeclareDiscreteState(1)
         self._error_index = self.DeclareDiscreteState(1)
         self._status_index = self.DeclareDiscreteState(1)
+        # [X_k ([vec_row(R); p]); t_k; V_k]: what the commanded pose is computed from, in one
+        # group (the pose is read three times a period).
+        self._pose_index = self.DeclareDiscreteState(np.concatenate([pose_to_vector(X_BE0),
+                                                                     np.zeros(7)]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._UpdateCommand)
         self.DeclareInitializationDiscreteUpdateEvent(self._UpdateCommand)
 
@@ -153,7 +175,10 @@ class VisualServoController(LeafSystem):
         self._phase_port = self.DeclareStateOutputPort("phase", self._phase_index)
         self._error_port = self.DeclareStateOutputPort("feature_error", self._error_index)
         self._status_port = self.DeclareStateOutputPort("status", self._status_index)
-
+        self._X_BE_desired_port = self.DeclareAbstractOutputPort(
+            "X_BE_desired", lambda: AbstractValue.Make(RigidTransform()), self._CalcDesiredPose,
+            prerequisites_of_calc={self.time_ticket(),
+                                   self.discrete_state_ticket(self._pose_index)})
 
     # Ports, as members so users can wire them by handle.
     def get_features_input_port(self):
@@ -179,6 +204,16 @@ class VisualServoController(LeafSystem):
 
     def get_status_output_port(self):
         return self._status_port
+
+    def get_X_BE_desired_output_port(self):
+        return self._X_BE_desired_port
+
+    def SetDesiredPose(self, context, X_BE) -> None:
+        """Restarts the commanded pose at X_BE (4×4 or RigidTransform, E in B) at the context's
+        time, e.g. the robot's pose when the run starts."""
+        V = context.get_discrete_state(self._command_index).get_value()
+        context.SetDiscreteState(self._pose_index, np.concatenate([
+            pose_to_vector(as_transform(X_BE, "X_BE")), [context.get_time()], V]))
 
     @staticmethod
     def _check_speed_limit(value, name):
@@ -212,8 +247,8 @@ class VisualServoController(LeafSystem):
         n = self._p_TQ.shape[0]
         features = self._EvalFinite(self._features_port, context)
         visible = self._EvalFinite(self._visible_port, context) > 0.5
-        X_CT = vector_to_pose(self._EvalFinite(self._X_CT_port, context))
-        Z = (self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3])[:, 2]
+        x_CT = self._EvalFinite(self._X_CT_port, context)
+        Z = (self._p_TQ @ x_CT[:9].reshape(3, 3).T + x_CT[9:12])[:, 2]
         usable = visible & (Z > MIN_DEPTH)
         n_usable = int(usable.sum())
 
@@ -229,29 +264,58 @@ class VisualServoController(LeafSystem):
         if phase < len(self._motions):
             command = self._motion_twists[phase]
         elif status == STATUS_OK:
-            X_CE = vector_to_pose(self._EvalFinite(self._X_CE_port, context))
-            if rotation_defect(X_CE[:3, :3]) > ESTIMATE_ROTATION_TOLERANCE:
+            x_CE = self._EvalFinite(self._X_CE_port, context)
+            if not _is_estimate_rotation(x_CE):
                 status = STATUS_INVALID_ESTIMATE
             else:
-                command = self._ServoTwist(features.reshape(n, 2), Z, X_CE, usable)
+                command = self._ServoTwist(features.reshape(n, 2), Z, x_CE, usable)
 
         discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
         discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
         discrete_state.get_mutable_vector(self._error_index).SetFromVector([feature_error])
         discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
+        # The desired pose reached at the end of the elapsed command period becomes X_k.
+        t = context.get_time()
+        R, p = self._DesiredPose(context, t, orthonormalize=True)
+        discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p, [t],
+                                                                   command]))
 
-    def _ServoTwist(self, uv, Z, X_CE, usable) -> np.ndarray:
-        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` without
+    def _DesiredPose(self, context, t, orthonormalize: bool = False):
+        """(R (3×3), p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist
+        V_k."""
+        x = context.get_discrete_state(self._pose_index).get_value()
+        s = t - x[12]
+        V = x[13:]
+        if s == 0.0 or not V.any():
+            return x[:9].reshape(3, 3), x[9:12]
+        R, p = _twist_motion(x[:12].tolist(), (s * V).tolist(), orthonormalize)
+        return np.array(R).reshape(3, 3), np.array(p)
+
+    def _CalcDesiredPose(self, context, output) -> None:
+        R, p = self._DesiredPose(context, context.get_time())
+        output.set_value(RigidTransform(RotationMatrix(R), p))
+
+    def _ServoTwist(self, uv, Z, x_CE, usable) -> np.ndarray:
+        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` (X_CE as
+        the pose vector x_CE) without
         the per-call checks of its arguments (checked once, in the constructor, or just above):
         the same arithmetic, step by step (tests check they are equal)."""
         uv_m = uv[usable]
         xy = np.linalg.solve(self._K2, (uv_m - self._principal_point).T).T
-        L = np.empty((2 * len(uv_m), 6))
-        for i, ((x, y), z) in enumerate(zip(xy.tolist(), Z[usable].tolist())):
-            L[2 * i:2 * i + 2] = self._K2 @ np.array([
-                [x * y, -(1.0 + x * x), y, -1.0 / z, 0.0, x / z],
-                [1.0 + y * y, -x * y, -x, 0.0, -1.0 / z, y / z]])
-        L = L @ twist_transform(X_CE)
+        x, y, z = xy[:, 0], xy[:, 1], Z[usable]
+        # Each point's 2×6 block of the normalized interaction matrix, stacked (N, 2, 6).
+        M = np.zeros((len(uv_m), 2, 6))
+        M[:, 0, 0], M[:, 0, 1], M[:, 0, 2] = x * y, -(1.0 + x * x), y
+        M[:, 0, 3], M[:, 0, 5] = -1.0 / z, x / z
+        M[:, 1, 0], M[:, 1, 1], M[:, 1, 2] = 1.0 + y * y, -x * y, -x
+        M[:, 1, 4], M[:, 1, 5] = -1.0 / z, y / z
+        # twist_transform(X_CE) from the pose vector: [[R, 0], [[p]× R, R]].
+        R, p = x_CE[:9].reshape(3, 3), x_CE[9:12]
+        T = np.zeros((6, 6))
+        T[:3, :3] = R
+        T[3:, 3:] = R
+        T[3:, :3] = skew(p) @ R
+        L = (self._K2 @ M).reshape(-1, 6) @ T
         error = (uv_m - self._desired_uv[usable]).reshape(-1)
         V = -self._gain * (np.linalg.pinv(L, rcond=1e-10) @ error)
         scale = 1.0
@@ -263,8 +327,57 @@ class VisualServoController(LeafSystem):
         return scale * V
 
     def _EvalFinite(self, port, context):
-        value = np.array(port.Eval(context), dtype=float)
-        if not np.all(np.isfinite(value)):
+        value = port.Eval(context)  # (a new array)
+        if not np.isfinite(value).all():
             raise ValueError(f"{port.get_name()} input of {self.get_name()!r}: contains NaN or "
                              f"infinite values at t = {context.get_time()}")
         return value
+
+
+def _is_estimate_rotation(x) -> bool:
+    """``rotation_defect(R) ≤ ESTIMATE_ROTATION_TOLERANCE`` for R = the first 9 entries of a
+    pose vector (row-major), on Python floats; the exact test decides near the bound."""
+    a, b, c, d, e, f, g, h, i = x[:9].tolist()
+    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
+        c * c + f * f + i * i - 1.0
+    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    tol = 0.999 * ESTIMATE_ROTATION_TOLERANCE
+    if frob2 <= tol * tol and abs(det - 1.0) <= tol:
+        return True
+    return rotation_defect(np.reshape(x[:9], (3, 3))) <= ESTIMATE_ROTATION_TOLERANCE
+
+
+def _twist_motion(x, sV, orthonormalize: bool):
+    """([R row-major], [p]) of X0 · exp([a; b]): the pose X0 = x ([vec_row(R0); p0], a list)
+    moved by the body twist [ω; v] held for s seconds, sV = [a; b] = [ω s (rad); v s (m)]
+    expressed in the moving frame — the SE(3) exponential, R = R0 exp([a]×) and
+    p = p0 + R0 J(a) b, J the left Jacobian of SO(3). On Python floats (3×3 numpy calls cost
+    more than the arithmetic). ``orthonormalize``: one Newton step R ← R (3I − RᵀR) / 2, so a
+    pose integrated over many periods stays a rotation to rounding."""
+    ax, ay, az, bx, by, bz = sV
+    th2 = ax * ax + ay * ay + az * az
+    if th2 < 1e-8:  # Taylor series: the terms dropped are below 1e-17
+        A, B, C = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
+    else:
+        th = math.sqrt(th2)
+        A, B = math.sin(th) / th, (1.0 - math.cos(th)) / th2
+        C = (1.0 - A) / th2
+    # exp([a]×) = I + A [a]× + B [a]×², with [a]×² = a aᵀ − θ² I.
+    d = 1.0 - B * th2
+    E = ((d + B * ax * ax, B * ax * ay - A * az, B * ax * az + A * ay),
+         (B * ay * ax + A * az, d + B * ay * ay, B * ay * az - A * ax),
+         (B * az * ax - A * ay, B * az * ay + A * ax, d + B * az * az))
+    # J b = b + B a × b + C a × (a × b)
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ex, ey, ez = ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx
+    j = (bx + B * cx + C * ex, by + B * cy + C * ey, bz + B * cz + C * ez)
+    R0 = (x[0:3], x[3:6], x[6:9])
+    R = [[r[0] * E[0][k] + r[1] * E[1][k] + r[2] * E[2][k] for k in range(3)] for r in R0]
+    p = [x[9 + i] + R0[i][0] * j[0] + R0[i][1] * j[1] + R0[i][2] * j[2] for i in range(3)]
+    if orthonormalize:
+        G = [[sum(R[m][i] * R[m][k] for m in range(3)) for k in range(3)] for i in range(3)]
+        R = [[sum(r[m] * ((1.5 if m == k else 0.0) - 0.5 * G[m][k]) for m in range(3))
+              for k in range(3)] for r in R]
+    return R, p

@@ -90,3 +90,17 @@ def test_the_rendered_reference_renders_and_detects_what_the_loop_did():
     lost[2] = 0.0
     with pytest.raises(AssertionError, match=r"where the target was found: \[2\]"):
         speed.check_same_detections(detections, lost, result.X_CT_samples)
+
+
+def test_corners_section_times_our_fit_and_opencvs_on_the_same_corners():
+    from handeye_drake.apps.speed_corners import _corner_set, corners_section
+    rows = corners_section((8, 16), log=lambda s: None)
+    assert [r["images"] for r in rows[:2]] == [8, 16]
+    for r in rows[:2]:
+        assert r["corners"] == 48 * r["images"] and r["seconds"] > 0
+        assert r["ratio"] == pytest.approx(r["seconds"] / r["reference_seconds"])
+    assert rows[2]["cost_per_image_growth"] == pytest.approx(
+        rows[1]["ms_per_image"] / rows[0]["ms_per_image"])
+    # The synthetic set is what the section says: every corner inside the 640×480 image.
+    X_BE, board, img, v, X_EC, X_BT = _corner_set(5, seed=3)
+    assert len(img) == 5 and all((u >= 0).all() and (u[:, 0] < 640).all() for u in img)

@@ -10,7 +10,13 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
-from handeye_drake.estimation.se3 import inverse, rotation_log, vector_to_pose
+from handeye_drake.estimation.se3 import (
+    inverse,
+    make_transform,
+    rotation_exp,
+    rotation_log,
+    vector_to_pose,
+)
 from handeye_drake.systems.arm import (
     UR5E_HOME_Q,
     UR5E_JOINT_NAMES,
@@ -346,3 +352,44 @@ def test_pd_gains_and_default_positions_are_applied():
     assert [g.p for g in gains] == [1, 2, 3, 4, 5, 6] and all(g.d == 7.0 for g in gains)
     np.testing.assert_array_equal(arm.plant.GetDefaultPositions(arm.model_instance), Q_GENERIC)
     assert arm.plant.time_step() == DT and arm.plant.is_finalized()
+
+
+def test_the_pose_tracking_driver_reaches_a_commanded_pose_from_the_start_state():
+    """add_pose_tracking_driver: Drake's integrator starts from the plant's state (no set-up
+    call) and drives the flange to a pose commanded in the base frame B (based off the world
+    here, so B ≠ W matters), under the joint velocity limits scaled by velocity_scale."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.primitives import ConstantValueSource
+
+    from handeye_drake.estimation.se3 import rotation_angle
+    from handeye_drake.systems.arm import add_pose_tracking_driver
+
+    X_WB = make_transform(rotation_exp([0.0, 0.0, 0.3]), [0.2, -0.1, 0.05])
+    builder = DiagramBuilder()
+    arm = add_arm(builder, plant_config=MultibodyPlantConfig(time_step=DT), X_WB=X_WB,
+                  q0=UR5E_HOME_Q)
+    driver = add_pose_tracking_driver(builder, arm, make_control_plant(X_WB=X_WB), 0.01,
+                                      velocity_scale=0.5)
+    X_BE0 = dh_forward_kinematics(UR5E_HOME_Q)
+    X_BE_goal = X_BE0 @ make_transform(rotation_exp([0.1, -0.05, 0.08]), [0.02, -0.03, 0.04])
+    goal = builder.AddSystem(ConstantValueSource(AbstractValue.Make(RigidTransform(X_BE_goal))))
+    builder.Connect(goal.get_output_port(), driver.X_BE_desired_input_port())
+    sensor = builder.AddSystem(EndEffectorPoseSensor(arm.plant, arm.base_frame, arm.ee_frame))
+    builder.Connect(arm.plant.get_body_poses_output_port(), sensor.get_body_poses_input_port())
+    desired = LogVectorOutput(driver.interpolator.get_output_port(), builder)  # [q; v] set point
+    state = LogVectorOutput(arm.plant.get_state_output_port(arm.model_instance), builder)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(1.0)
+    context = simulator.get_context()
+    X_BE = vector_to_pose(sensor.get_X_BE_output_port().Eval(
+        sensor.GetMyContextFromRoot(context)))
+    assert np.linalg.norm(X_BE[:3, 3] - X_BE_goal[:3, 3]) < 1e-3
+    assert rotation_angle(X_BE[:3, :3].T @ X_BE_goal[:3, :3]) < np.radians(0.1)
+    v_d = desired.FindLog(context).data()[6:]
+    limit = 0.5 * make_control_plant().GetVelocityUpperLimits()
+    assert np.all(np.abs(v_d) <= limit[:, None] * (1 + 1e-9))
+    assert np.abs(v_d).max() > 0.5 * limit.max()  # the limit was what bounded the motion
+    # It started from the plant's state: no jump of the set point at the first step.
+    q = state.FindLog(context).data()[:6]
+    np.testing.assert_allclose(q[:, 0], UR5E_HOME_Q, atol=1e-12)
+    np.testing.assert_allclose(desired.FindLog(context).data()[:6, 0], UR5E_HOME_Q, atol=1e-2)

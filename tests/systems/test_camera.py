@@ -187,7 +187,9 @@ def test_ports():
     assert sizes == {"X_WE": 12, "pixel_noise": 12, "pose_noise": 12}
     sizes = {camera.get_output_port(i).get_name(): camera.get_output_port(i).size()
              for i in range(camera.num_output_ports())}
-    assert sizes == {"features": 12, "visible": 6, "X_CT_measured": 12, "X_WC": 12}
+    assert sizes == {"features": 12, "visible": 6, "X_CT_measured": 12, "X_WC": 12, "X_BE": 12}
+    with pytest.raises(ValueError, match="use get_X_WE_input_port"):
+        camera.get_body_poses_input_port()
     # Outputs read state only: no direct feedthrough, so feedback loops are not algebraic.
     assert not camera.HasAnyDirectFeedthrough()
 
@@ -214,3 +216,37 @@ def test_per_sample_path_equals_project_points_and_apply_pose_noise(model):
     np.testing.assert_array_equal(state.get_vector(1).get_value(), in_image.astype(float))
     np.testing.assert_array_equal(state.get_vector(2).get_value(), pose_to_vector(
         apply_pose_noise(X_CT, pose_noise, model, 0.01, 0.002)))
+
+
+def test_with_a_plant_it_reads_the_body_poses_as_the_pose_sensor_does():
+    """Given the arm's plant, the camera samples the end-effector pose from its body poses —
+    bit-identical to the X_WE and X_BE of an EndEffectorPoseSensor, X_BE held with the image."""
+    from handeye_drake.systems.arm import UR5E_HOME_Q, EndEffectorPoseSensor, add_arm
+    builder = DiagramBuilder()
+    X_WB = make_transform(rotation_exp([0.0, 0.0, 0.4]), [0.1, 0.2, 0.05])
+    arm = add_arm(builder, X_WB=X_WB)
+    camera = builder.AddSystem(HandEyeCamera(CAM, X_EC, P_TQ, X_WT, PERIOD, plant=arm.plant))
+    sensor = builder.AddSystem(EndEffectorPoseSensor(arm.plant, "base_link", "tool0"))
+    for system in (camera, sensor):
+        builder.Connect(arm.plant.get_body_poses_output_port(),
+                        system.get_body_poses_input_port())
+    with pytest.raises(ValueError, match="use get_body_poses_input_port"):
+        camera.get_X_WE_input_port()
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    q = UR5E_HOME_Q + np.array([0.1, -0.2, 0.15, 0.05, -0.1, 0.3])
+    arm.plant.SetPositions(arm.plant.GetMyMutableContextFromRoot(context), q)
+    simulator.Initialize()  # the camera's initialization sample (the plant has not stepped)
+    camera_context = camera.GetMyContextFromRoot(context)
+    sensor_context = sensor.GetMyContextFromRoot(context)
+    X_WE_sensor = sensor.get_X_WE_output_port().Eval(sensor_context)
+    np.testing.assert_array_equal(camera.get_X_BE_output_port().Eval(camera_context),
+                                  sensor.get_X_BE_output_port().Eval(sensor_context))
+    np.testing.assert_array_equal(camera.get_X_WC_output_port().Eval(camera_context),
+                                  pose_to_vector(vector_to_pose(X_WE_sensor) @ X_EC))
+    # X_BE is the pose in the base, not in the world.
+    np.testing.assert_allclose(X_WB @ vector_to_pose(
+        camera.get_X_BE_output_port().Eval(camera_context)), vector_to_pose(X_WE_sensor),
+        atol=1e-15)
+    with pytest.raises(ValueError, match="ee_frame_name: no frame named 'flange'"):
+        HandEyeCamera(CAM, X_EC, P_TQ, X_WT, PERIOD, plant=arm.plant, ee_frame_name="flange")

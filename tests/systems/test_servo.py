@@ -126,6 +126,48 @@ def test_self_calibration_phases_and_twists():
     assert servo.phase_at(0.2 - 1e-12) == 1  # sample times off by rounding land in the right phase
 
 
+def test_the_commanded_pose_integrates_the_held_twist():
+    """X_BE_desired(t) = X_k · exp(V_k (t − t_k)): along a self-calibration motion, the start
+    pose moved by the motion's screw for t (its rotation about the pivot, exactly); then the
+    servo's twists, period after period."""
+    motion = SelfCalibrationMotion(axis_E=(0, 1, 1), angle=-0.3, pivot_E=(0.1, 0, 0.4),
+                                   duration=0.3)
+    X0 = make_transform(rotation_exp([0.3, -0.2, 0.1]), [0.4, -0.1, 0.5])
+    uv, Z, X_CT = measure(X_WE_START)
+    diagram, servo, _ = servo_with_fixed_inputs(uv, np.ones(5), X_CT, X_CE,
+                                                self_calibration_motions=[motion],
+                                                X_BE_initial=X0)
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    servo_context = servo.GetMyContextFromRoot(context)
+    port = servo.get_X_BE_desired_output_port()
+    simulator.Initialize()
+    np.testing.assert_allclose(port.Eval(servo_context).GetAsMatrix4(), X0, atol=1e-15)
+    V = motion.twist_E()
+    for t in (0.02, 0.05, 0.17, 0.3):  # inside periods and on their boundaries
+        simulator.AdvanceTo(t)
+        np.testing.assert_allclose(port.Eval(servo_context).GetAsMatrix4(),
+                                   X0 @ twist_exp(V * t), atol=1e-13)
+    # The pivot does not move, and the hand turned by the motion's angle.
+    X_end = port.Eval(servo_context).GetAsMatrix4()
+    p_pivot = X0[:3, :3] @ np.array([0.1, 0, 0.4]) + X0[:3, 3]
+    np.testing.assert_allclose(X_end[:3, :3] @ np.array([0.1, 0, 0.4]) + X_end[:3, 3], p_pivot,
+                               atol=1e-13)
+    assert np.degrees(np.arccos((np.trace(X0[:3, :3].T @ X_end[:3, :3]) - 1) / 2)) == \
+        pytest.approx(np.degrees(0.3), abs=1e-9)
+    # The servo phase: the twist held on (t_k, t_k+1] moves the pose reached at t_k.
+    simulator.AdvanceTo(0.5)
+    X_k = port.Eval(servo_context).GetAsMatrix4()
+    V_k = servo.get_command_output_port().Eval(servo_context)
+    assert np.linalg.norm(V_k) > 0
+    simulator.AdvanceTo(0.5 + 0.6 * PERIOD)
+    np.testing.assert_allclose(port.Eval(servo_context).GetAsMatrix4(),
+                               X_k @ twist_exp(V_k * 0.6 * PERIOD), atol=1e-13)
+    # SetDesiredPose restarts it.
+    servo.SetDesiredPose(servo.GetMyMutableContextFromRoot(context), np.eye(4))
+    np.testing.assert_allclose(port.Eval(servo_context).GetAsMatrix4(), np.eye(4), atol=1e-15)
+
+
 def test_servo_command_matches_ibvs_and_feature_error():
     uv, Z, X_CT = measure(X_WE_START)
     diagram, servo, loggers = servo_with_fixed_inputs(uv, np.ones(5), X_CT, X_CE, gain=0.7)
@@ -293,7 +335,8 @@ def test_ports_and_infinite_limits():
     assert sizes == {"features": 10, "visible": 5, "X_CT_measured": 12, "X_CE_estimate": 12}
     sizes = {servo.get_output_port(i).get_name(): servo.get_output_port(i).size()
              for i in range(servo.num_output_ports())}
-    assert sizes == {"V_WE_E_command": 6, "phase": 1, "feature_error": 1, "status": 1}
+    assert sizes == {"V_WE_E_command": 6, "phase": 1, "feature_error": 1, "status": 1,
+                     "X_BE_desired": 0}  # (abstract: a RigidTransform)
     assert not servo.HasAnyDirectFeedthrough()
 
 
@@ -328,4 +371,5 @@ def test_per_sample_law_equals_ibvs_twist_and_saturation(visible):
                                       max_angular_speed=max_w, max_linear_speed=max_v)
         expected = saturate_twist(ibvs_twist(uv, UV_STAR, Z, CAM, X_CE, 0.7, visible=usable),
                                   max_w, max_v)
-        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, X_CE, usable), expected)
+        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, pose_to_vector(X_CE), usable),
+                                      expected)
