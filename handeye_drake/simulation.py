@@ -67,6 +67,7 @@ from .systems.calibrator import (
     STATUS_FILTERING,
     STATUS_INIT_FAILED,
     HandEyeCalibrator,
+    add_hand_eye_calibrator,
 )
 from .systems.camera import HandEyeCamera
 from .systems.camera_pose import HandCameraPose
@@ -492,15 +493,16 @@ def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camer
     period = scenario.period
     sampled_X_BE = robot_pose_at_trigger(camera)
     self_calibration_time = sum(m.duration for m in scenario.servo.self_calibration)
-    calibrator = builder.AddNamedSystem("calibrator", HandEyeCalibrator(
-        period=period, X_CE_initial_guess=scenario.X_CE_guess_matrix(),
-        estimator=scenario.estimator_config(),
+    # The scenario only supplies values: the wiring is ``add_hand_eye_calibrator``'s, the same
+    # one a diagram without a scenario uses.
+    calibrator = add_hand_eye_calibrator(
+        builder, estimator=scenario.estimator_config(), period=period,
+        X_CE_initial_guess=scenario.X_CE_guess_matrix(), X_BE=sampled_X_BE,
+        X_CT=camera.get_X_CT_output_port(), phase=servo.get_phase_output_port(),
         num_self_calibration_motions=len(scenario.servo.self_calibration),
         init_method=scenario.calibrator.init_method,
-        max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4))
-    builder.Connect(sampled_X_BE, calibrator.get_X_BE_input_port())
-    builder.Connect(camera.get_X_CT_output_port(), calibrator.get_X_CT_input_port())
-    builder.Connect(servo.get_phase_output_port(), calibrator.get_phase_input_port())
+        max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4,
+        name="calibrator")
     return calibrator, sampled_X_BE
 
 

@@ -344,8 +344,8 @@ class HandEyeCalibrator(LeafSystem):
         discrete_state.set_value(self._mode_index, [mode])
 
 
-def add_hand_eye_calibrator(builder, *, estimator, period: float, X_EC_initial_guess, X_BE,
-                            X_CT, phase=None, X_CT_valid=None, X_CT_covariance=None,
+def add_hand_eye_calibrator(builder, *, estimator, period: float, X_BE, X_CT,
+                            X_EC_initial_guess=None, phase=None, X_CT_valid=None, X_CT_covariance=None,
                             num_self_calibration_motions: int | None = None,
                             name: str = "hand_eye_calibrator", **kwargs) -> HandEyeCalibrator:
     """Adds a ``HandEyeCalibrator`` to any ``DiagramBuilder`` and connects it — no scenario.
@@ -355,7 +355,8 @@ def add_hand_eye_calibrator(builder, *, estimator, period: float, X_EC_initial_g
         estimator: the estimator's settings with their σ (e.g. ``TargetFilter(rotation_sigma=
             0.002, translation_sigma=0.0005)``, rad and m).
         period: the camera's sample period (s).
-        X_EC_initial_guess: the camera on the hand, 4×4.
+        X_EC_initial_guess: the camera on the hand, 4×4 (or ``X_CE_initial_guess=`` in
+            ``kwargs``, its inverse).
         X_BE, X_CT: output ports of your robot (flange E in base B, 12-vector [vec_row(R); p])
             and of your camera (target T in camera C, same layout), sampled at the same instants.
         phase: output port of the motion index (see the class's "Phases"); None: no
