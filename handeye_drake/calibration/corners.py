@@ -11,6 +11,7 @@ covariances [δθ (rad); δt (m)] with R = exp(δθ) R̂.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -21,8 +22,9 @@ from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, Corn
                                         intrinsics_matrix, intrinsics_vector,
                                         select_intrinsics_model)
 from ..estimation.se3 import rotation_log
-from .checks import Reason, Verdict
-from .pipeline import robot_error_covariance
+from ..estimation.consistency import with_scaled_translations
+from .checks import Reason, Verdict, _quick_fit
+from .pipeline import calibrate_streams, robot_error_covariance
 
 REFINE_CHOICES = INTRINSICS_MODELS + ("auto",)
 #: A target scale this many σ from 1 (and more than ``SCALE_MIN_ERROR`` off) FAILs the verdict.
@@ -171,7 +173,7 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         refine: one of ``REFINE_CHOICES``.
         robot_accuracy: (deg, m) or None, added to the covariance as for the pose-level fit.
         intrinsics_source: "given" (by the user or a CameraInfo) or "self-calibrated" (from the
-            same images: the "none" model is then not offered, its σ would ignore them).
+            same images: "auto" then only offers the models that refine fx, fy, cx, cy).
         scale0: the target scale the camera poses were scaled by before the pose-level fit.
     """
     if refine not in REFINE_CHOICES:
@@ -187,9 +189,7 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
                    np.linalg.norm(n.translation) / math.sqrt(3)], 3)
     rms = [d.reprojection_rms_px for d in detections if np.isfinite(d.reprojection_rms_px)]
     px0 = max(float(np.median(rms)) / math.sqrt(2) if rms else 0.3, 0.05)
-    X_H0, X_F0 = fit0.X_H, fit0.X_F
-    if scale0 != 1.0:   # the fixed pose was fitted to camera poses scaled by scale0
-        X_F0 = X_F0.copy()
+    X_H0, X_F0 = fit0.X_H, fit0.X_F      # fitted to camera poses scaled by scale0
     kwargs = dict(pixel_sigma0=px0, pose_sigma0=ps0, pose_error_frame=frame)
     models = {}
     # Intrinsics from the same images: every model offered refines the principal point and
@@ -254,7 +254,6 @@ def calibrate_images(streams, settings: dict, refine: str = "auto"):
         streams: ``inputs.Streams`` of ``image_streams`` or ``bag_image_streams``.
         settings: keyword arguments of ``calibrate_streams``.
         refine: ``--refine-intrinsics``."""
-    from .pipeline import calibrate_streams
     scale0 = 1.0
     try:
         result = calibrate_streams(streams.robot, streams.camera, **settings)
@@ -291,11 +290,6 @@ def _explained(result) -> bool:
 def _search_scale(streams, settings):
     """(scale, CalibrationResult of the camera poses scaled by it) for the scale whose quick
     pose fit leaves the smallest translation residuals, when one gives an answer; else None."""
-    import dataclasses
-
-    from ..estimation.consistency import with_scaled_translations
-    from .checks import _quick_fit
-    from .pipeline import calibrate_streams
     mode = settings.get("mode", "eye_in_hand")
     offset = settings.get("time_offset")
     offset = offset if isinstance(offset, (int, float)) else 0.0
