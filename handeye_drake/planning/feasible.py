@@ -720,6 +720,12 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
 
     def next_pose(samples_X_BE, X_H=None, X_F=None, rotation_sigma=rotation_sigma,
                   translation_sigma=translation_sigma):
+        # A candidate a sample already lies at (e.g. after a resumed session) is visited.
+        for X in samples_X_BE:
+            near = np.linalg.norm(candidates.X_BE[:, :3, 3] - np.asarray(X)[:3, 3], axis=1)
+            for i in np.flatnonzero(near < 0.002):
+                if rotation_angle(candidates.X_BE[i, :3, :3].T @ np.asarray(X)[:3, :3]) < 0.01:
+                    visited.add(int(i))
         free = [i for i in range(len(candidates)) if i not in visited]
         if not free:
             return None

@@ -194,3 +194,31 @@ def test_nothing_below_the_applications_imports_the_planner():
         if m.startswith("handeye_drake.planning"):
             assert not any(d.startswith(("handeye_drake.apps", "handeye_drake.calibration"))
                            for d in deps), (m, deps)
+
+
+def test_the_session_visits_only_feasible_poses_and_stops(planner):
+    from handeye_drake.calibration import CalibrationOptions
+    from handeye_drake.calibration.session import CalibrationSession
+    from handeye_drake.estimation.se3 import inverse
+    from handeye_drake.planning import as_session_planner
+    cands = planner.sample_candidates(25)
+    next_pose = as_session_planner(planner, cands)
+    s = CalibrationSession(0.3, 1.5, CalibrationOptions(robot_accuracy_deg=0.01,
+                                                        robot_accuracy_mm=0.05),
+                           next_pose=next_pose)
+    rng = np.random.default_rng(0)
+    pose = next_pose([], None, None)
+    q_prev = planner.q_nominal
+    for _ in range(25):
+        assert planner.check(pose["q"]).ok
+        assert planner.check_segment(q_prev, pose["q"])[0] >= planner.min_distance_m - 1e-4 \
+            or len(pose["path"]) == 2
+        X_BE = planner.X_BE(pose["q"])
+        X_CT = inverse(X_BE @ X_EC) @ X_BT
+        X_CT = make_transform(rotation_exp(rng.normal(0, 5e-4, 3)) @ X_CT[:3, :3],
+                              X_CT[:3, 3] + rng.normal(0, 3e-4, 3))
+        step = s.add(X_BE, X_CT)
+        if step.stop:
+            break
+        q_prev, pose = pose["q"], step.next_pose
+    assert step.stop and step.next_pose is None
