@@ -130,7 +130,14 @@ def _planner(args, mode):
         cands = read_poses(args.candidates, "robot").poses
         return CandidatePoses(cands, X_H, X_F, mode)
     from ..planning import FeasiblePlanner, ViewSpec, as_session_planner
-    view = ViewSpec(intrinsics=parse_intrinsics(args.intrinsics) if args.intrinsics else None)
+    points = None
+    if args.board:
+        w, h = _numbers(args.board, "--board", (2,))
+        if w <= 0 or h <= 0:
+            raise ValueError(f"--board: expected WIDTH,HEIGHT > 0 (m), got {args.board!r}")
+        points = np.array([[x, y, 0.0] for x in (0, w) for y in (0, h)])
+    view = ViewSpec(intrinsics=parse_intrinsics(args.intrinsics) if args.intrinsics else None,
+                    target_points=points)
     planner = FeasiblePlanner(mode, X_H, X_F, urdf=args.urdf, view=view, seed=args.seed)
     cands = planner.sample_candidates(args.num_candidates)
     print(f"planner: {len(cands)} reachable, collision-free views from {cands.attempts} IK "
@@ -245,6 +252,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument("--num-candidates", type=int, default=60, metavar="N",
                    help="--feasible: views to generate (default 60)")
     g.add_argument("--seed", type=int, default=0, help="--feasible: random seed")
+    g.add_argument("--board", metavar="WIDTH,HEIGHT",
+                   help="--feasible: the board's size (m) from the target origin along x and y, "
+                        "its corners kept in the image (with --intrinsics)")
     g.add_argument("--hand-eye", metavar="POSE", help="rough X_EC (X_BC eye-to-hand), "
                    "x,y,z,qx,qy,qz,qw")
     g.add_argument("--target", metavar="POSE", help="target pose X_BT (X_ET eye-to-hand), "

@@ -345,9 +345,8 @@ class CalibrationSession:
             if (step.source == "batch" and step.verdict == "OK"
                     and self._reached(step.rotation_sigma_deg, step.translation_sigma_mm)):
                 step.status = "stop"
-                step.message = (f"stop: σ {step.rotation_sigma_deg:.3f}° / "
-                                f"{step.translation_sigma_mm:.2f} mm ≤ target {self.target[0]:g}° "
-                                f"/ {self.target[1]:g} mm with verdict OK")
+                step.message = (f"σ at or below the target {self.target[0]:g}° / "
+                                f"{self.target[1]:g} mm with verdict OK: calibrated")
                 return step
         if self.max_samples is not None and n >= self.max_samples:
             step.message = (f"{n} samples, the most allowed: the σ target "

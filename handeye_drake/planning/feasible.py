@@ -45,7 +45,7 @@ UR5E_HOME_Q = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
 #: SNOPT's iteration limits: a view that needs more is treated as unreachable (keeps a failing
 #: request to a fraction of a second per attempt).
 _SOLVER_OPTIONS = SolverOptions()
-_SOLVER_OPTIONS.SetOption(SnoptSolver.id(), "Major iterations limit", 150)
+_SOLVER_OPTIONS.SetOption(SnoptSolver.id(), "Major iterations limit", 100)
 _SOLVER_OPTIONS.SetOption(SnoptSolver.id(), "Iterations limit", 3000)
 
 
@@ -163,10 +163,6 @@ class Tour:
     @property
     def duration_s(self) -> float:
         return float(self.trajectory.end_time())
-
-
-def _frame_base_z(R):
-    return R[:, 2]
 
 
 def _look_rotation(z, roll):
@@ -392,6 +388,25 @@ class FeasiblePlanner:
                 reasons.append("target points outside the image")
         return Feasibility(within, d, pair, dist, off, tilt, in_image, reasons)
 
+    def in_view(self, X_BE, X_HC=None, X_FT=None) -> bool:
+        """Every target point in front of the camera and inside the image by ``margin_px`` at the
+        flange pose X_BE, with the given (or the planner's) camera and target poses."""
+        X_HC = self.X_HC if X_HC is None else np.asarray(X_HC, float)
+        X_FT = self.X_FT if X_FT is None else np.asarray(X_FT, float)
+        if self.mode == "eye_in_hand":
+            X_CT = inverse(np.asarray(X_BE) @ X_HC) @ X_FT
+        else:
+            X_CT = inverse(X_HC) @ np.asarray(X_BE) @ X_FT
+        k, m = self.view.intrinsics, self.view.margin_px
+        P = (X_CT[:3, :3] @ self.view.points.T).T + X_CT[:3, 3]
+        if k is None:
+            c = X_CT[:3, :3] @ self.view.center + X_CT[:3, 3]
+            return bool(c[2] > 0 and math.atan2(np.linalg.norm(c[:2]), c[2]) <= self.view.cone_rad)
+        uv, front, _ = project_points(P, k)
+        uv = np.asarray(uv)
+        return bool(np.all(front) and np.all(uv[:, 0] >= m) and np.all(uv[:, 1] >= m)
+                    and np.all(uv[:, 0] <= k.width - 1 - m) and np.all(uv[:, 1] <= k.height - 1 - m))
+
     # ------------------------------------------------------------------------------- IK
     def _corner_points(self):
         """The target points each held in view by a gaze cone (with intrinsics and several)."""
@@ -400,7 +415,8 @@ class FeasiblePlanner:
         return list(self.view.points)
 
     def _image_cone(self) -> float:
-        """Half-angle of the cone inscribed in the image, less the margin (rad)."""
+        """Half-angle of the cone inscribed in the image, less the margin (rad): a target point
+        inside it is inside the image (conservative: the image's corners are left out)."""
         k, m = self.view.intrinsics, self.view.margin_px
         return 0.95 * min(math.atan2(k.width / 2 - m, k.alpha_u),
                           math.atan2(k.height / 2 - m, k.alpha_v))
@@ -532,13 +548,15 @@ class FeasiblePlanner:
             return (f"{what}: target out of reach — no joint configuration puts the camera "
                     f"{self.view.distance_range_m[0]:g}–{self.view.distance_range_m[1]:g} m from "
                     f"the target within {self.view.max_tilt_deg:g}° tilt{reach}")
-        q2, ok2 = self.solve_ik(None, q, collision=True)
-        if not ok2:
-            d, pair = self.min_distance(q)
+        d, pair = self.min_distance(q)
+        if d < self.min_distance_m:
+            # The view the robot reaches collides (and the sampled views with the clearance
+            # constraint all failed).
             how = (f"into {pair[1]} by {-1000 * d:.0f} mm" if d < 0 else
                    f"within {1000 * d:.0f} mm of {pair[1]}")
-            return (f"{what}: no view without collision — the views the robot reaches bring "
-                    f"{pair[0]} {how} (minimum clearance {1000 * self.min_distance_m:g} mm)")
+            return (f"{what}: no view without collision — IK with the clearance failed, and the "
+                    f"view reached without it brings {pair[0]} {how} (minimum clearance "
+                    f"{1000 * self.min_distance_m:g} mm)")
         common = rejected.most_common(1)[0][0] if rejected else "random viewpoints rejected"
         return (f"{what}: views exist near the nominal configuration but the sampled viewpoints "
                 f"failed ({common}); widen the distance range or the tilt")
@@ -650,7 +668,7 @@ class FeasiblePlanner:
                 way.append(Q[i])
             worst = min(worst, d)
             kept.append(int(i))
-        traj, times = self._trajectory(way, dwell_s, [len(way) - 1 - w for w in range(0)])
+        traj, times = self._trajectory(way, dwell_s)
         # The time each kept pose is reached: the waypoints that are poses (not the start).
         pose_times, j = [], 1
         for i in kept:
@@ -661,7 +679,7 @@ class FeasiblePlanner:
         return Tour(kept, np.array(way), traj, pose_times, float(worst), dropped, detours,
                     step_rad)
 
-    def _trajectory(self, way, dwell_s, _unused):
+    def _trajectory(self, way, dwell_s):
         """PiecewisePolynomial through the waypoints (cubic Hermite on dense quintic samples,
         exact positions and velocities at the samples) and the arrival time of each."""
         ts, qs, vs, arrive = [0.0], [way[0]], [np.zeros_like(way[0])], [0.0]
@@ -733,6 +751,12 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
         X_FT = planner.X_FT if X_F is None else X_F
         visible = np.zeros(len(candidates), bool)
         visible[free] = True
+        if X_H is not None and planner.view.intrinsics is not None:
+            # With an estimate of the mount, keep the candidates whose image holds the target
+            # by the margin through the estimate (the IK aimed them with the rough mount).
+            seen = np.array([planner.in_view(candidates.X_BE[i], X_HC, X_FT) for i in free])
+            if seen.any():
+                visible[np.asarray(free)[~seen]] = False
         order = plan_next_poses(candidates.X_BE, inverse(X_HC), X_FT, samples_X_BE,
                                 rotation_sigma, translation_sigma, n=min(3, len(free)),
                                 mode=planner.mode, visibility=visible, exchange=False).indices

@@ -23,7 +23,8 @@ def _link_points(planner, q) -> np.ndarray:
 
 
 def write_picture(planner, tour, path) -> None:
-    """PNG: the arm (link origins joined) at each pose of ``tour``, its camera axis, the target."""
+    """PNG: the arm (link origins joined) at each pose of ``tour`` (numbered in the visiting order),
+    its optical axis as far as the target, the flange's path, the target points."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -36,7 +37,9 @@ def write_picture(planner, tour, path) -> None:
                 alpha=0.4 if k == 0 else 0.9)
         X_BC, X_BT = planner.camera_target(q)
         a = X_BC[:3, 3]
-        b = a + 0.15 * X_BC[:3, 2]
+        # The optical axis, drawn as far as the target centre's depth.
+        c = X_BT[:3, :3] @ planner.view.center + X_BT[:3, 3]
+        b = a + max(float((c - a) @ X_BC[:3, 2]), 0.05) * X_BC[:3, 2]
         ax.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color="crimson", lw=1)
         if k:
             ax.text(*p[-1], str(k), fontsize=8)
@@ -52,10 +55,14 @@ def write_picture(planner, tour, path) -> None:
     ax.set_zlabel("z_B (m)")
     ax.set_title(f"planned tour: {len(tour.order)} poses, {tour.duration_s:.0f} s, "
                  f"clearance ≥ {1000 * tour.min_distance_m:.0f} mm")
-    lim = 0.9
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_zlim(0, 1.2)
+    pts = np.vstack([_link_points(planner, q) for q in tour.waypoints] + [P])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    half = 0.5 * float(np.max(hi - lo)) + 0.05
+    mid = 0.5 * (lo + hi)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(max(mid[2] - half, -0.05), max(mid[2] - half, -0.05) + 2 * half)
+    ax.view_init(elev=22, azim=-50)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
