@@ -195,6 +195,8 @@ class FeasiblePlanner:
         camera_size_m: the camera body, a box centred on C (m), eye-in-hand on the flange.
         target_size_m: the target board, a box (m) centred on the target centre, 2 mm thick
             behind the board face unless given.
+        meshcat: a ``pydrake.geometry.Meshcat`` to preview in (a ``MeshcatVisualizer`` is added
+            to the planner's diagram; ``preview.write_html`` records a tour into it), or None.
         seed: seeds the viewpoint sampling.
 
     Raises:
@@ -731,8 +733,11 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
 
     The callable takes ``(samples_X_BE, X_H, X_F, rotation_sigma, translation_sigma)`` (X_H:
     X_EC or X_BC; X_F: X_BT or X_ET; None before an estimate) and returns a dict with
-    ``X_BE`` (4×4), ``q`` (rad), ``index`` and ``min_path_distance_m``; or None when every
-    candidate has been visited."""
+    ``X_BE`` (4×4), ``q`` (rad), ``index``, ``path`` (the joint configurations to move through:
+    the pose, or the start configuration then the pose when the straight move is not clear) and
+    ``min_path_distance_m`` (the smallest clearance along it, m); or None when every candidate
+    has been visited. With an estimate X_H and intrinsics, candidates whose image would not hold
+    every target point by the margin through that estimate are passed over."""
     visited = set()
     state = {"q": planner.q_nominal if q_start is None else np.asarray(q_start, float)}
 

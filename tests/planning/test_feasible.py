@@ -222,3 +222,18 @@ def test_the_session_visits_only_feasible_poses_and_stops(planner):
             break
         q_prev, pose = pose["q"], step.next_pose
     assert step.stop and step.next_pose is None
+
+
+def test_cli_session_suggests_feasible_poses(tmp_path, capsys):
+    from tests.calibration.test_session import _line, samples
+    f = tmp_path / "samples.txt"
+    f.write_text("\n".join(_line(*x) for x in samples(3, seed=1)) + "\n")
+    code = main(["session", "--samples", str(f), "--feasible", "--num-candidates", "5",
+                 f"--hand-eye={HAND_EYE}", "--target=-0.45,-0.15,0",
+                 "--intrinsics", "800,800,320,240,640,480", "--board", "0.2,0.15",
+                 "--out", str(tmp_path / "o")])
+    text = capsys.readouterr().out
+    assert code == 1      # three samples: the input ends before the target
+    assert "planner: 5 reachable, collision-free views" in text
+    nexts = [line for line in text.splitlines() if "next: X_BE" in line]
+    assert len(nexts) == 4 and all(" q [" in line for line in nexts)
