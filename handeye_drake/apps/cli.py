@@ -5,7 +5,8 @@ no application imports this module back.
     handeye-drake scenario    the default scenario as YAML
     handeye-drake calibrate   hand-eye calibration from recorded poses, images or a bag
     handeye-drake target      a calibration target to print, at true scale
-    handeye-drake plan        the next robot poses to record (D-optimal design)
+    handeye-drake plan        the next robot poses to record (D-optimal design; --feasible: IK)
+    handeye-drake session     live calibration: the next pose after each sample, stop when good
     handeye-drake reproduce   the paper's experiments (Figures 2–10)
     handeye-drake sweep       Monte Carlo runs over settings × seeds (local processes or Dask)
     handeye-drake benchmark   accuracy against OpenCV and the maximum-likelihood limit; speed
@@ -19,10 +20,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import accuracy, calibrate, plan, reproduce, simulate, speed, sweep, target
+from . import accuracy, calibrate, plan, reproduce, session, simulate, speed, sweep, target
 from .outputs import remove_empty_created
 
-APPLICATIONS = (simulate, calibrate, target, plan, reproduce, sweep)
+APPLICATIONS = (simulate, calibrate, target, plan, session, reproduce, sweep)
 #: Sub-commands of ``handeye-drake benchmark``.
 BENCHMARKS = (accuracy, speed)
 

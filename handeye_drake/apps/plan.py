@@ -15,6 +15,10 @@ in the base). Poses on the command line are ``x,y,z,qx,qy,qz,qw`` (metres, TUM/R
 order, scalar last). Eye-to-hand (``--mode eye_to_hand``): ``--hand-eye`` is X_BC (the camera
 in the base) and ``--target`` the target's position on the flange (in E).
 
+With ``--feasible`` the candidates come from Drake's inverse kinematics for the robot in its cell
+instead (``apps.plan_feasible``: joint limits, collisions, the target in view), and the command
+also writes the joint configurations, a collision-checked trajectory and a Meshcat preview.
+
 The command is ``add_parser(subparsers)`` / ``run_plan(args)`` of the project CLI.
 """
 
@@ -27,69 +31,18 @@ import math
 import numpy as np
 
 from .outputs import prepare_output_dir
+from .pose_args import _numbers, parse_intrinsics, parse_point, parse_pose  # noqa: F401
 from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
                                         observability_report, parse_fixed, pose_residuals,
                                         recording_observability, refine_ml_poses_fixed)
 from ..estimation.planning import plan_next_poses, sample_candidate_poses
-from ..estimation.se3 import inverse, make_transform, quat_wxyz, rotation_from_quat_wxyz
+from ..estimation.se3 import inverse, make_transform, quat_wxyz
 from ..calibration.align import align_streams
 from ..recorded.formats import FORMATS, read_poses
-from ..vision.camera_model import CameraIntrinsics
 
 #: Default camera pose noise when it cannot be estimated (no --camera): 0.1° and 1 mm.
 DEFAULT_ROTATION_SIGMA_DEG = 0.1
 DEFAULT_TRANSLATION_SIGMA = 0.001
-
-
-def _numbers(text: str, name: str, counts: tuple) -> np.ndarray:
-    try:
-        v = np.array([float(s) for s in text.replace(" ", ",").split(",") if s], dtype=float)
-    except ValueError:
-        raise ValueError(f"{name}: expected {' or '.join(map(str, counts))} comma-separated "
-                         f"numbers, got {text!r}") from None
-    if len(v) not in counts:
-        raise ValueError(f"{name}: expected {' or '.join(map(str, counts))} comma-separated "
-                         f"numbers, got {len(v)} in {text!r}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name}: values must be finite, got {text!r}")
-    return v
-
-
-def parse_pose(text: str, name: str) -> np.ndarray:
-    """``x,y,z,qx,qy,qz,qw`` (metres; quaternion scalar last, norm within 1e-3 of 1) → 4×4."""
-    v = _numbers(text, name, (7,))
-    q = v[3:]
-    norm = float(np.linalg.norm(q))
-    if abs(norm - 1.0) > 1e-3:
-        raise ValueError(f"{name}: the quaternion (qx, qy, qz, qw) = {q.tolist()} has norm "
-                         f"{norm:.6g}, expected 1 (order x,y,z,qx,qy,qz,qw)")
-    q = q / norm
-    return make_transform(rotation_from_quat_wxyz([q[3], q[0], q[1], q[2]]), v[:3])
-
-
-def parse_point(text: str, name: str) -> np.ndarray:
-    """``x,y,z`` (or a full pose, whose translation is used) → (3,)."""
-    v = _numbers(text, name, (3, 7))
-    return v[:3] if len(v) == 3 else parse_pose(text, name)[:3, 3]
-
-
-def parse_intrinsics(text: str) -> CameraIntrinsics:
-    """``--intrinsics``: any form ``calibrate --intrinsics`` takes (an OpenCV or ROS camera_info
-    YAML, which carry the image size, or ``fx,fy,cx,cy[,k1,…]`` with the size from the image),
-    or ``fx,fy,cx,cy,W,H`` (the image size, W×H pixels, last)."""
-    from pathlib import Path
-
-    from ..vision.intrinsics import load_intrinsics
-    if Path(text).is_file() or not ("," in text):
-        try:
-            return load_intrinsics(text)
-        except ValueError as e:
-            raise ValueError(f"--intrinsics: {e}") from None
-    v = _numbers(text, "--intrinsics", (6,))
-    fx, fy, cx, cy, w, h = v
-    if w != int(w) or h != int(h):
-        raise ValueError(f"--intrinsics: width and height must be integers, got {w:g}, {h:g}")
-    return CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=int(w), height=int(h))
 
 
 def _tum_line(stamp: float, X: np.ndarray) -> str:
@@ -175,6 +128,15 @@ def run_plan(args) -> int:
     out = prepare_output_dir(args.out, "plan", args.force)
     if args.n < 1:
         raise ValueError(f"--n: must be ≥ 1, got {args.n}")
+    if args.num_candidates is not None and args.num_candidates < 1:
+        raise ValueError(f"--num-candidates: must be ≥ 1, got {args.num_candidates}")
+    if args.feasible:
+        from .plan_feasible import run_feasible_plan
+        if args.num_candidates is None:
+            args.num_candidates = 60
+        return run_feasible_plan(args, out, mode)
+    if args.num_candidates is None:
+        args.num_candidates = 500
     if args.camera and not args.robot:
         raise ValueError("--camera: needs --robot (the robot poses of the same samples)")
     if args.candidates and args.around:
@@ -311,8 +273,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--around: largest rotation from POSE (default 30)")
     p.add_argument("--max-distance", type=float, default=0.1, metavar="METRES",
                    help="--around: largest flange displacement from POSE (default 0.1)")
-    p.add_argument("--num-candidates", type=int, default=500, metavar="N",
-                   help="--around: candidates to sample (default 500)")
+    p.add_argument("--num-candidates", type=int, default=None, metavar="N",
+                   help="--around: candidates to sample (default 500); --feasible: verified "
+                        "candidates to find (default 60)")
     p.add_argument("--seed", type=int, default=0, help="--around: random seed (default 0)")
     p.add_argument("--hand-eye", metavar="POSE",
                    help="rough X_EC (X_BC for eye-to-hand), x,y,z,qx,qy,qz,qw; needed without "
@@ -343,6 +306,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="write into a non-empty --out that is not this command's output "
                         "(never overwriting files the tool did not write)")
+    from .plan_feasible import add_arguments
+    add_arguments(p)
     p.set_defaults(func=run_plan)
     return p
 

@@ -1,0 +1,273 @@
+"""``handeye-drake session``: a live calibration that says what to record next and when to stop.
+
+    handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,0.5
+                          [--candidates FILE | --feasible] [--hand-eye POSE --target POSE]
+                          [--mode eye-in-hand] [--state FILE [--resume]] [--out DIR]
+
+A thin command around ``calibration.session.CalibrationSession``. Each input line is one sample:
+
+- 14 numbers ``x y z qx qy qz qw  x y z qx qy qz qw`` (commas or spaces): X_BE (flange in base)
+  then X_CT (target in camera), metres, quaternion scalar last; 15 numbers: a timestamp first;
+- or a JSON object ``{"X_BE": [x,y,z,qx,qy,qz,qw] or 4×4, "X_CT": ... }``, or with ``"image":
+  PATH`` instead of X_CT (``--target-spec`` and ``--intrinsics`` then needed).
+
+``#`` starts a comment. ``--follow`` keeps reading a growing file (a driver appending to it) until
+stop or ``--idle-timeout`` seconds without a new line. After each sample one line: σ (deg, mm;
+tool and 0.5 m in front, mm), the verdict so far, the next pose (with ``--candidates``: the
+D-optimal best of those poses; with ``--feasible``: a reachable, collision-free pose from Drake's
+IK for the shipped UR5e or ``--urdf``). At stop, ``calibration.json`` is written into ``--out``.
+
+Exit status: 0 stop (σ at the target, verdict OK); 1 the input ended before that; 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..calibration.api import CalibrationOptions
+from ..calibration.session import CalibrationSession, CandidatePoses
+from ..estimation.se3 import quat_wxyz
+from ..recorded.formats import read_poses
+from .outputs import prepare_output_dir
+from .pose_args import _numbers, parse_intrinsics, parse_pose
+
+
+def _pose(value, what: str) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    if a.shape == (4, 4):
+        return a
+    if a.shape == (7,):
+        return parse_pose(",".join(repr(float(x)) for x in a), what)
+    raise ValueError(f"{what}: expected 7 numbers (x,y,z,qx,qy,qz,qw) or a 4×4 matrix")
+
+
+def parse_sample(line: str, where: str) -> dict | None:
+    """One input line → {X_BE, X_CT | image, stamp}; None for blank and comment lines."""
+    text = line.split("#", 1)[0].strip()
+    if not text:
+        return None
+    if text.startswith("{"):
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{where}: not valid JSON ({e.msg})") from None
+        if "X_BE" not in d or ("X_CT" in d) == ("image" in d):
+            raise ValueError(f"{where}: expected X_BE with X_CT or image")
+        out = {"X_BE": _pose(d["X_BE"], f"{where}: X_BE"), "stamp": d.get("stamp")}
+        if "X_CT" in d:
+            out["X_CT"] = _pose(d["X_CT"], f"{where}: X_CT")
+        else:
+            out["image"] = str(d["image"])
+        return out
+    v = _numbers(text, where, (14, 15))
+    stamp = float(v[0]) if len(v) == 15 else None
+    v = v[-14:]
+    return {"X_BE": _pose(v[:7], f"{where}: X_BE"), "X_CT": _pose(v[7:], f"{where}: X_CT"),
+            "stamp": stamp}
+
+
+def _lines(args):
+    """(line, where) from --samples, following a growing file with --follow."""
+    if args.samples == "-":
+        for k, line in enumerate(sys.stdin, start=1):
+            yield line, f"stdin line {k}"
+        return
+    path = Path(args.samples)
+    if not path.is_file():
+        raise ValueError(f"--samples: file not found: {args.samples!r}")
+    with path.open() as fh:
+        k, idle = 0, time.monotonic()
+        buf = ""
+        while True:
+            chunk = fh.readline()
+            if chunk:
+                buf += chunk
+                if not buf.endswith("\n") and args.follow:
+                    continue        # a line being written: wait for its end
+                k += 1
+                yield buf, f"{path.name} line {k}"
+                buf, idle = "", time.monotonic()
+                continue
+            if buf:
+                k += 1
+                yield buf, f"{path.name} line {k}"
+                buf = ""
+            if not args.follow or time.monotonic() - idle > args.idle_timeout:
+                return
+            time.sleep(0.1)
+
+
+def _next_text(pose) -> str:
+    if pose is None:
+        return ""
+    X = np.asarray(pose["X_BE"])
+    q = quat_wxyz(X[:3, :3])
+    s = (f"  next: X_BE {','.join(f'{x:.4f}' for x in X[:3, 3])},"
+         f"{q[1]:.6f},{q[2]:.6f},{q[3]:.6f},{q[0]:.6f}")
+    if pose.get("q") is not None:
+        s += "  q [" + " ".join(f"{x:+.4f}" for x in np.asarray(pose["q"])) + "] rad"
+    return s
+
+
+def _planner(args, mode):
+    if args.candidates and args.feasible:
+        raise ValueError("--candidates and --feasible: give one source of next poses")
+    if not (args.candidates or args.feasible):
+        return None
+    if args.hand_eye is None or args.target is None:
+        raise ValueError("--hand-eye and --target: the next poses need the rough camera pose "
+                         "and the target pose")
+    X_H = parse_pose(args.hand_eye, "--hand-eye")
+    from .plan_feasible import parse_target_pose
+    X_F = parse_target_pose(args.target, mode)
+    if args.candidates:
+        cands = read_poses(args.candidates, "robot").poses
+        return CandidatePoses(cands, X_H, X_F, mode)
+    from ..planning import FeasiblePlanner, ViewSpec, as_session_planner
+    points = None
+    if args.board:
+        w, h = _numbers(args.board, "--board", (2,))
+        if w <= 0 or h <= 0:
+            raise ValueError(f"--board: expected WIDTH,HEIGHT > 0 (m), got {args.board!r}")
+        points = np.array([[x, y, 0.0] for x in (0, w) for y in (0, h)])
+    view = ViewSpec(intrinsics=parse_intrinsics(args.intrinsics) if args.intrinsics else None,
+                    target_points=points)
+    planner = FeasiblePlanner(mode, X_H, X_F, urdf=args.urdf, view=view, seed=args.seed)
+    cands = planner.sample_candidates(args.num_candidates)
+    print(f"planner: {len(cands)} reachable, collision-free views from {cands.attempts} IK "
+          "problems")
+    return as_session_planner(planner, cands)
+
+
+def run_session(args) -> int:
+    mode = args.mode.replace("-", "_")
+    sigma = _numbers(args.target_sigma, "--target-sigma", (2,))
+    if not np.all(sigma > 0):
+        raise ValueError(f"--target-sigma: expected DEG,MM > 0, got {args.target_sigma!r}")
+    acc = _numbers(args.robot_accuracy, "--robot-accuracy", (2,))
+    if not np.all(acc >= 0):
+        raise ValueError(f"--robot-accuracy: expected DEG,MM ≥ 0, got {args.robot_accuracy!r}")
+    if args.resume and not args.state:
+        raise ValueError("--resume: needs --state FILE")
+    if args.idle_timeout <= 0:
+        raise ValueError(f"--idle-timeout: must be > 0, got {args.idle_timeout}")
+    out = prepare_output_dir(args.out, "session", args.force)
+    next_pose = _planner(args, mode)
+    if args.resume:
+        session = CalibrationSession.resume(args.state, next_pose)
+        if session.mode != mode:
+            raise ValueError(f"--mode: the saved session is {session.mode}, not {mode}")
+        print(f"resumed {len(session.X_BE)} samples from {args.state}")
+        if session.last is not None:
+            print(session.last.line())
+    else:
+        options = CalibrationOptions(mode=mode, robot_accuracy_deg=float(acc[0]),
+                                     robot_accuracy_mm=float(acc[1]))
+        session = CalibrationSession(float(sigma[0]), float(sigma[1]), options, next_pose)
+        if next_pose is not None:
+            first = next_pose([], None, None)
+            print("start:" + _next_text(first))
+    target = intrinsics = None
+    if args.target_spec:
+        from ..vision.targets import parse_target
+        target = parse_target(args.target_spec)
+    if args.intrinsics:
+        intrinsics = parse_intrinsics(args.intrinsics)
+    step = session.last
+    for line, where in _lines(args):
+        sample = parse_sample(line, where)
+        if sample is None:
+            continue
+        if "image" in sample:
+            if target is None or intrinsics is None:
+                raise ValueError(f"{where}: an image sample needs --target-spec and --intrinsics")
+            import cv2
+            img = cv2.imread(sample["image"], cv2.IMREAD_GRAYSCALE)
+            if img is None:
+                raise ValueError(f"{where}: cannot read the image {sample['image']!r}")
+            step = session.add(sample["X_BE"], image=img, target=target, intrinsics=intrinsics,
+                               stamp=sample["stamp"])
+        else:
+            step = session.add(sample["X_BE"], sample["X_CT"], stamp=sample["stamp"])
+        print(step.line() + _next_text(step.next_pose), flush=True)
+        if args.state:
+            session.save(args.state)
+        if step.stop:
+            break
+    files = []
+    if step is not None and step.stop:
+        from ..calibration.report import write_json
+        files.append(write_json(session.result, out.path("calibration.json")))
+        X = session.result.X_hand
+        q = quat_wxyz(X[:3, :3])
+        name = "X_EC" if mode == "eye_in_hand" else "X_BC"
+        print(f"calibrated after {len(session.X_BE)} samples: {name} "
+              f"{','.join(f'{x:.5f}' for x in X[:3, 3])},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f},"
+              f"{q[0]:.6f}; verdict {session.result.verdict.status}")
+    p = out.path("session_steps.json")
+    p.write_text(json.dumps({"samples": len(session.X_BE), "stop": bool(step and step.stop),
+                             "last": None if step is None else step.to_dict()}, indent=1) + "\n")
+    files.append(p)
+    out.finish(files)
+    if step is None or not step.stop:
+        n = len(session.X_BE)
+        print(f"input ended after {n} samples before the σ target "
+              f"{sigma[0]:g}° / {sigma[1]:g} mm was reached with verdict OK", file=sys.stderr)
+        return 1
+    return 0
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser(
+        "session", help="live calibration: next pose after each sample, stop when good enough",
+        description="Reads samples one by one (a file, a growing file with --follow, or stdin) "
+                    "and after each prints the estimate's σ, the verdict so far and the next "
+                    "pose; stops when σ reaches --target-sigma with verdict OK.")
+    p.add_argument("--samples", required=True, metavar="FILE",
+                   help="sample lines (see the module help), '-' for stdin")
+    p.add_argument("--follow", action="store_true",
+                   help="keep reading the file as it grows (until stop or --idle-timeout)")
+    p.add_argument("--idle-timeout", type=float, default=60.0, metavar="SECONDS",
+                   help="--follow: give up after this long without a new line (default 60)")
+    p.add_argument("--target-sigma", default="0.1,0.5", metavar="DEG,MM",
+                   help="stop when the hand-eye σ (RMS radius) is at most DEG and MM (default "
+                        "0.1,0.5)")
+    p.add_argument("--robot-accuracy", default="0.03,0.3", metavar="DEG,MM",
+                   help="the robot's pose accuracy added to the σ (default 0.03,0.3)")
+    p.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
+                   type=lambda s: s.replace("_", "-"))
+    g = p.add_argument_group("next poses")
+    g.add_argument("--candidates", metavar="FILE", help="poses X_BE the robot can reach (any "
+                   "pose format): the next is the D-optimal best of the unvisited ones")
+    g.add_argument("--feasible", action="store_true",
+                   help="reachable, collision-free poses from Drake's IK (shipped UR5e or "
+                        "--urdf, floor at z = 0)")
+    g.add_argument("--urdf", default=None, metavar="FILE", help="--feasible: robot model")
+    g.add_argument("--num-candidates", type=int, default=60, metavar="N",
+                   help="--feasible: views to generate (default 60)")
+    g.add_argument("--seed", type=int, default=0, help="--feasible: random seed")
+    g.add_argument("--board", metavar="WIDTH,HEIGHT",
+                   help="--feasible: the board's size (m) from the target origin along x and y, "
+                        "its corners kept in the image (with --intrinsics)")
+    g.add_argument("--hand-eye", metavar="POSE", help="rough X_EC (X_BC eye-to-hand), "
+                   "x,y,z,qx,qy,qz,qw")
+    g.add_argument("--target", metavar="POSE", help="target pose X_BT (X_ET eye-to-hand), "
+                   "x,y,z[,qx,qy,qz,qw]")
+    p.add_argument("--target-spec", metavar="SPEC",
+                   help="the board of image samples (e.g. chessboard:9x6:0.0236)")
+    p.add_argument("--intrinsics", metavar="fx,fy,cx,cy,W,H", help="camera intrinsics (pixels)")
+    p.add_argument("--state", metavar="FILE", help="save the session state (JSON) after each "
+                   "sample")
+    p.add_argument("--resume", action="store_true", help="continue the session saved in --state")
+    p.add_argument("--out", default="out/session", metavar="DIR",
+                   help="output directory (default out/session)")
+    p.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that is not this command's output")
+    p.set_defaults(func=run_session)
+    return p

@@ -1,0 +1,441 @@
+"""A live calibration session: add samples one by one, get the estimate, its σ, the verdict so
+far and the next pose to visit after each; stop when σ reaches the user's target with verdict OK.
+
+    session = CalibrationSession(target_sigma_deg=0.1, target_sigma_mm=0.5, next_pose=planner)
+    step = session.add(X_BE, X_CT)          # or session.add(X_BE, image=img, target=..., intrinsics=K)
+    print(step.line()); if step.stop: result = session.result
+
+Per sample, the on-line filter (``estimation.manifold.HandEyeTargetFilter``: an error-state EKF on
+the synchronized poses, estimating the hand-eye and the fixed pose together) gives the estimate
+and σ at once; the batch calibration (``api.solve``: motion-pair start, maximum likelihood,
+hold-out, split-half, the usual mistakes, the verdict) runs when the filter's σ reaches the
+target, every ``batch_every`` samples, and at the first samples. Only the batch decides to stop:
+**stop** = the batch σ ≤ the target in rotation *and* translation, with the verdict OK. After
+each batch the filter restarts from the batch estimate (with a weak prior) and replays every
+sample, so it never drifts from the answer that counts.
+
+σ: the RMS radius of the hand-eye error (√trace of the 3×3 covariance block) — rotation in deg,
+translation in mm — and (``task_space.task_sigmas``) of the tool-centre point and of a point
+0.5 m in front of the camera, in mm.
+
+Frames (X_AB: pose of B in A): B robot base, E end-effector, C camera, T target. Samples are
+X_BE (robot) and X_CT (target in camera). Eye-in-hand: the result is X_EC, the fixed pose X_BT;
+eye-to-hand: X_BC and X_ET. Lengths m (mm where the name says), angles rad (deg where it says).
+
+The next pose comes from an injected callable, so that this module stays free of Drake: any
+``next_pose(samples_X_BE, X_H, X_F, rotation_sigma, translation_sigma) -> dict | None`` (X_H: the
+hand-eye estimate, X_F the fixed pose, both None before the first estimate; the dict holds at
+least ``X_BE``), e.g. ``CandidatePoses`` (the D-optimal best of a list of poses, Drake-free) or
+``handeye_drake.planning.as_session_planner`` (reachable, collision-free poses from Drake's IK).
+
+State: ``to_dict``/``save`` write JSON (settings and every sample); ``resume`` reads them back
+and runs the batch on every saved sample, so a resumed session continues from the answer the
+uninterrupted one would give on the same samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..estimation.configs import TargetFilter
+from ..estimation.manifold import HandEyeTargetFilter
+from ..estimation.planning import plan_next_poses
+from ..estimation.se3 import inverse, rotation_angle
+from ..estimation.validation import as_transform
+from ..recorded.formats import pose_stream
+from .api import CalibrationOptions, solve
+from .inputs import Streams
+from .task_space import task_sigmas
+
+#: State file format version.
+STATE_VERSION = 1
+#: Fewest samples before the first batch attempt.
+MIN_BATCH_SAMPLES = 4
+
+
+@dataclass
+class SessionStep:
+    """What the session says after a sample.
+
+    Attributes:
+        num_samples: samples accepted so far.
+        status: "collecting" (no estimate yet), "continue" or "stop".
+        source: where the estimate comes from: "filter", "batch" or "" (none yet).
+        X_hand: X_EC (eye-in-hand) or X_BC (eye-to-hand), 4×4; None before an estimate.
+        X_fixed: X_BT or X_ET; None before an estimate.
+        rotation_sigma_deg, translation_sigma_mm: RMS radius of the hand-eye error (module
+            docstring); None before an estimate.
+        tcp_sigma_mm, front_sigma_mm: σ of the tool-centre point and of a point 0.5 m in front
+            of the camera located through the result (mm).
+        verdict: "OK", "WARN", "FAIL" from the last batch, or None before one; ``reasons`` its
+            reasons (one line each).
+        batch_samples: samples the last batch used (its verdict is of those).
+        next_pose: the planner's dict (``X_BE``, maybe ``q``) for the pose to visit next, None
+            when there is no planner, nothing left, or at stop.
+        message: one line saying what to do next.
+    """
+    num_samples: int
+    status: str
+    source: str = ""
+    X_hand: np.ndarray | None = None
+    X_fixed: np.ndarray | None = None
+    rotation_sigma_deg: float | None = None
+    translation_sigma_mm: float | None = None
+    tcp_sigma_mm: float | None = None
+    front_sigma_mm: float | None = None
+    verdict: str | None = None
+    reasons: list = field(default_factory=list)
+    batch_samples: int = 0
+    next_pose: dict | None = None
+    message: str = ""
+
+    @property
+    def stop(self) -> bool:
+        return self.status == "stop"
+
+    def line(self) -> str:
+        """One line: sample count, σ, verdict, what next."""
+        if self.rotation_sigma_deg is None:
+            return f"[{self.num_samples:3d}] {self.status}: {self.message}"
+        v = self.verdict or "—"
+        return (f"[{self.num_samples:3d}] {self.status}: σ {self.rotation_sigma_deg:.3f}° / "
+                f"{self.translation_sigma_mm:.2f} mm ({self.source}); tool {self.tcp_sigma_mm:.2f}"
+                f" mm, 0.5 m in front {self.front_sigma_mm:.2f} mm; verdict {v}; {self.message}")
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        for k in ("X_hand", "X_fixed"):
+            d[k] = None if d[k] is None else np.asarray(d[k]).tolist()
+        if self.next_pose is not None:
+            d["next_pose"] = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) or (
+                isinstance(v, list) and v and isinstance(v[0], np.ndarray)) else v)
+                for k, v in self.next_pose.items()}
+        d["stop"] = self.stop
+        return d
+
+
+def _radius(cov3) -> float:
+    return float(math.sqrt(max(float(np.trace(cov3)), 0.0)))
+
+
+class CandidatePoses:
+    """A Drake-free next-pose callable: the D-optimal best (``estimation.planning``) of a fixed
+    list of poses X_BE not visited yet (a candidate is visited when a sample lies within
+    ``visited_deg`` and ``visited_m`` of it).
+
+    Args:
+        candidates_X_BE: (N, 4, 4) poses the robot can reach (e.g. checked on the cell).
+        X_H_guess: rough X_EC (X_BC eye-to-hand), used before the first estimate.
+        X_F_guess: rough X_BT (X_ET), only its position matters.
+        mode: "eye_in_hand" or "eye_to_hand".
+    """
+
+    def __init__(self, candidates_X_BE, X_H_guess, X_F_guess, mode: str = "eye_in_hand",
+                 visited_deg: float = 0.5, visited_m: float = 0.002):
+        self.candidates = np.asarray(candidates_X_BE, float).reshape(-1, 4, 4)
+        if len(self.candidates) == 0:
+            raise ValueError("candidates_X_BE: the candidate set is empty")
+        self.X_H = as_transform(X_H_guess, "X_H_guess")
+        self.X_F = as_transform(X_F_guess, "X_F_guess")
+        self.mode = mode
+        self.visited_rad, self.visited_m = math.radians(visited_deg), visited_m
+
+    def _visited(self, samples) -> np.ndarray:
+        done = np.zeros(len(self.candidates), bool)
+        for X in samples:
+            for i, C in enumerate(self.candidates):
+                if (np.linalg.norm(C[:3, 3] - X[:3, 3]) <= self.visited_m
+                        and rotation_angle(C[:3, :3].T @ X[:3, :3]) <= self.visited_rad):
+                    done[i] = True
+        return done
+
+    def __call__(self, samples_X_BE, X_H=None, X_F=None, rotation_sigma=0.002,
+                 translation_sigma=0.001):
+        free = ~self._visited(samples_X_BE)
+        if not free.any():
+            return None
+        X_H = self.X_H if X_H is None else X_H
+        X_F = self.X_F if X_F is None else X_F
+        i = plan_next_poses(self.candidates, inverse(X_H), X_F, samples_X_BE, rotation_sigma,
+                            translation_sigma, n=1, mode=self.mode, visibility=free,
+                            exchange=False).indices[0]
+        return {"X_BE": self.candidates[i], "index": int(i)}
+
+
+class CalibrationSession:
+    """A live calibration (module docstring).
+
+    Args:
+        target_sigma_deg, target_sigma_mm: stop when the batch σ (RMS radius of the hand-eye
+            rotation, deg, and translation, mm) are at most these, with the verdict OK.
+        options: ``CalibrationOptions`` of the batch fit (mode, robot accuracy, …).
+        next_pose: the next-pose callable (module docstring), or None.
+        camera_sigma_deg, camera_sigma_mm: the camera pose noise per axis assumed by the filter
+            and the planner before the first batch (then the batch's estimate of it).
+        batch_every: run the batch at least every this many samples.
+        max_samples: stop suggesting poses after this many samples (None: no limit); the status
+            stays "continue" with a message saying the target was not reached.
+    """
+
+    def __init__(self, target_sigma_deg: float = 0.1, target_sigma_mm: float = 0.5,
+                 options: CalibrationOptions | None = None, next_pose=None,
+                 camera_sigma_deg: float = 0.1, camera_sigma_mm: float = 1.0,
+                 batch_every: int = 5, max_samples: int | None = None):
+        for name, v in (("target_sigma_deg", target_sigma_deg),
+                        ("target_sigma_mm", target_sigma_mm),
+                        ("camera_sigma_deg", camera_sigma_deg),
+                        ("camera_sigma_mm", camera_sigma_mm)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                    math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {v!r}")
+        if isinstance(batch_every, bool) or not isinstance(batch_every, int) or batch_every < 1:
+            raise ValueError(f"batch_every: expected an integer ≥ 1, got {batch_every!r}")
+        if max_samples is not None and (not isinstance(max_samples, int) or max_samples < 1):
+            raise ValueError(f"max_samples: expected None or an integer ≥ 1, got {max_samples!r}")
+        if options is None:
+            options = CalibrationOptions()
+        if not isinstance(options, CalibrationOptions):
+            raise ValueError(f"options: expected a CalibrationOptions, got "
+                             f"{type(options).__name__}")
+        if next_pose is not None and not callable(next_pose):
+            raise ValueError("next_pose: expected a callable (samples_X_BE, X_H, X_F, "
+                             "rotation_sigma, translation_sigma) -> dict or None")
+        self.target = (float(target_sigma_deg), float(target_sigma_mm))
+        self.options = options
+        self.mode = options.mode
+        self.next_pose = next_pose
+        self.camera_sigma = (math.radians(camera_sigma_deg), camera_sigma_mm / 1000.0)
+        self.batch_every = batch_every
+        self.max_samples = max_samples
+        self.X_BE, self.X_CT, self.stamps, self.sources = [], [], [], []
+        self.skipped = []                 # (reason) of refused samples
+        self.result = None                # the last batch CalibrationResult
+        self._batch_n = 0
+        self._batch_error = ""
+        self._filter = None
+        self.last = None
+
+    # ------------------------------------------------------------------------------ input
+    def add(self, X_BE, X_CT=None, *, image=None, target=None, intrinsics=None,
+            stamp: float | None = None) -> SessionStep:
+        """Adds one sample: the robot pose X_BE with the measured X_CT, or with an ``image`` of the
+        ``target`` (a ``vision.targets`` spec or target) seen with ``intrinsics``
+        (``vision.detection.detect_target`` measures X_CT). Returns the ``SessionStep``.
+
+        A sample whose image shows no target is skipped (the step says why). ValueError naming
+        the argument on bad input."""
+        X_BE = as_transform(X_BE, "X_BE", rigid=True)
+        source = "pose"
+        if (X_CT is None) == (image is None):
+            raise ValueError("X_CT / image: give the measured target pose X_CT or an image")
+        if image is not None:
+            if target is None or intrinsics is None:
+                raise ValueError("target / intrinsics: an image sample needs the target and the "
+                                 "camera intrinsics")
+            from ..vision.detection import detect_target
+            det = detect_target(image, target, intrinsics)
+            if not det.found:
+                self.skipped.append(det.reason)
+                step = self._step()
+                step.message = f"sample skipped: target not found ({det.reason}); " + step.message
+                self.last = step
+                return step
+            X_CT, source = det.X_CT, "image"
+        X_CT = as_transform(X_CT, "X_CT", rigid=True)
+        self.X_BE.append(X_BE)
+        self.X_CT.append(X_CT)
+        self.stamps.append(None if stamp is None else float(stamp))
+        self.sources.append(source)
+        self._update_filter(X_BE, X_CT)
+        self.last = self._step()
+        return self.last
+
+    # ---------------------------------------------------------------------------- filters
+    def _filter_sample(self, X_BE, X_CT):
+        # Eye-to-hand X_CT = X_CB X_BE X_ET is eye-in-hand's X_CT = X_CE inv(X_BE) X_BT with
+        # inv(X_BE) for X_BE: the filter then estimates X_CB and X_ET.
+        return (X_BE if self.mode == "eye_in_hand" else inverse(X_BE)), X_CT
+
+    def _new_filter(self, X_hand, sr, st):
+        cfg = TargetFilter(rotation_sigma=sr, translation_sigma=st,
+                           initial_variances=[math.radians(1.0) ** 2] * 3 + [0.01 ** 2] * 3,
+                           gate_probability=None)
+        return HandEyeTargetFilter(cfg, inverse(X_hand))
+
+    def _update_filter(self, X_BE, X_CT):
+        if self._filter is None:
+            return
+        try:
+            self._filter.update(*self._filter_sample(X_BE, X_CT))
+        except ValueError:
+            pass
+
+    def _filter_estimate(self):
+        f = self._filter
+        cov = f.X_EC_covariance
+        return f.X_EC, f.X_BT, cov
+
+    def _run_batch(self):
+        n = len(self.X_BE)
+        times = None
+        if all(s is not None for s in self.stamps) and np.all(np.diff(self.stamps) > 0):
+            times = np.array(self.stamps)
+        streams = Streams(robot=pose_stream(np.array(self.X_BE), times, "session robot"),
+                          camera=pose_stream(np.array(self.X_CT), times, "session camera"),
+                          inputs={"session": {"samples": n}})
+        options = self.options
+        if times is None and options.time_offset_s is None:
+            options = dataclasses.replace(options, time_offset_s=0.0)
+        try:
+            result = solve(streams, options)
+        except ValueError as e:
+            self._batch_error = " ".join(str(e).split())
+            self._batch_n = n
+            return
+        self.result, self._batch_n, self._batch_error = result, n, ""
+        # The filter's noise: the camera's (from the batch) and the robot's accuracy together.
+        acc = self.options.robot_accuracy or (0.0, 0.0)
+        sr = math.hypot(max(result.fit.rotation_sigma, 1e-5), math.radians(acc[0]))
+        st = math.hypot(max(result.fit.translation_sigma, 1e-6), acc[1])
+        self._filter = self._new_filter(result.X_hand, sr, st)
+        for a, b in zip(self.X_BE, self.X_CT):
+            self._update_filter(a, b)
+
+    def _sigmas(self, X_hand, cov):
+        rot = math.degrees(_radius(cov[:3, :3]))
+        tra = 1000.0 * _radius(cov[3:, 3:])
+        X_R = np.array(self.X_BE) if self.mode == "eye_to_hand" else None
+        ts = task_sigmas(self.mode, X_hand, cov, X_R)
+        return rot, tra, 1000.0 * ts["tool_centre_point_m"], 1000.0 * ts["point_in_front_m"]
+
+    def _reached(self, rot, tra) -> bool:
+        return rot <= self.target[0] and tra <= self.target[1]
+
+    def _step(self) -> SessionStep:
+        n = len(self.X_BE)
+        need_batch = n >= MIN_BATCH_SAMPLES and (
+            self.result is None or n - self._batch_n >= self.batch_every)
+        if self._filter is not None and not need_batch and n > self._batch_n:
+            X_h, _, cov = self._filter_estimate()
+            if self._reached(*self._sigmas(X_h, cov)[:2]):
+                need_batch = True       # the filter says the target is reached: let the batch decide
+        if need_batch and n > self._batch_n:
+            self._run_batch()
+        step = SessionStep(n, "collecting")
+        if self._filter is not None and self.result is not None:
+            if self._batch_n == n:
+                X_h, X_f, cov = self.result.X_hand, self.result.X_fixed, self.result.covariance
+                step.source = "batch"
+            else:
+                X_h, X_f, cov = self._filter_estimate()
+                step.source = "filter"
+            step.X_hand, step.X_fixed = X_h, X_f
+            (step.rotation_sigma_deg, step.translation_sigma_mm, step.tcp_sigma_mm,
+             step.front_sigma_mm) = self._sigmas(X_h, cov)
+            step.verdict = self.result.verdict.status
+            step.reasons = [r.message for r in self.result.verdict.reasons]
+            step.batch_samples = self._batch_n
+            step.status = "continue"
+            if (step.source == "batch" and step.verdict == "OK"
+                    and self._reached(step.rotation_sigma_deg, step.translation_sigma_mm)):
+                step.status = "stop"
+                step.message = (f"σ at or below the target {self.target[0]:g}° / "
+                                f"{self.target[1]:g} mm with verdict OK: calibrated")
+                return step
+        if self.max_samples is not None and n >= self.max_samples:
+            step.message = (f"{n} samples, the most allowed: the σ target "
+                            f"{self.target[0]:g}° / {self.target[1]:g} mm was not reached")
+            return step
+        sr, st = self.camera_sigma
+        if self.result is not None:
+            sr = max(self.result.fit.rotation_sigma, 1e-5)
+            st = max(self.result.fit.translation_sigma, 1e-6)
+        if self.next_pose is not None:
+            step.next_pose = self.next_pose(list(self.X_BE), step.X_hand, step.X_fixed, sr, st)
+        if step.status == "collecting":
+            why = f" ({self._batch_error})" if self._batch_error else ""
+            step.message = f"not determined yet{why}"
+        elif step.verdict != "OK":
+            step.message = step.reasons[0] if step.reasons else f"verdict {step.verdict}"
+        else:
+            step.message = (f"target {self.target[0]:g}° / {self.target[1]:g} mm not reached "
+                            "yet")
+        if step.next_pose is not None:
+            step.message += "; move to the next pose"
+        elif self.next_pose is not None:
+            step.message += "; the planner has no pose left"
+        else:
+            step.message += "; record a new pose (rotate ≥ 20° about a new axis)"
+        return step
+
+    def finish(self):
+        """The batch result on every sample (runs the batch if the last one is older)."""
+        if len(self.X_BE) > self._batch_n:
+            self._run_batch()
+        if self.result is None:
+            raise ValueError("session: no calibration yet" + (
+                f" ({self._batch_error})" if self._batch_error else ""))
+        return self.result
+
+    # ------------------------------------------------------------------------------ state
+    def to_dict(self) -> dict:
+        return {"version": STATE_VERSION, "target_sigma_deg": self.target[0],
+                "target_sigma_mm": self.target[1],
+                "options": dataclasses.asdict(self.options),
+                "camera_sigma_deg": math.degrees(self.camera_sigma[0]),
+                "camera_sigma_mm": 1000.0 * self.camera_sigma[1],
+                "batch_every": self.batch_every, "max_samples": self.max_samples,
+                "samples": [{"X_BE": a.tolist(), "X_CT": b.tolist(), "stamp": s, "source": o}
+                            for a, b, s, o in zip(self.X_BE, self.X_CT, self.stamps,
+                                                  self.sources)],
+                "skipped": self.skipped,
+                "last": None if self.last is None else self.last.to_dict()}
+
+    def save(self, path) -> None:
+        """Writes the state as JSON (atomically: a crash leaves the previous file)."""
+        p = Path(path)
+        tmp = p.with_name(p.name + ".tmp")
+        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        tmp.replace(p)
+
+    @classmethod
+    def resume(cls, path, next_pose=None) -> "CalibrationSession":
+        """The session saved at ``path``, its samples replayed (the planner is given again)."""
+        p = Path(path)
+        if not p.is_file():
+            raise ValueError(f"state: file not found: {str(p)!r}")
+        try:
+            d = json.loads(p.read_text())
+            if d.get("version") != STATE_VERSION:
+                raise ValueError(f"version {d.get('version')!r}, expected {STATE_VERSION}")
+            s = cls(d["target_sigma_deg"], d["target_sigma_mm"],
+                    CalibrationOptions(**d["options"]), next_pose, d["camera_sigma_deg"],
+                    d["camera_sigma_mm"], d["batch_every"], d["max_samples"])
+            samples = d["samples"]
+        except (KeyError, TypeError, json.JSONDecodeError, ValueError) as e:
+            raise ValueError(f"state: {p.name} is not a session state ({e})") from None
+        s.skipped = list(d.get("skipped", []))
+        for k in samples:
+            s._append(k)
+        if samples:
+            s._run_batch() if len(samples) >= MIN_BATCH_SAMPLES else None
+            s.last = s._step()
+        return s
+
+    def _append(self, k):
+        X_BE = as_transform(k["X_BE"], "X_BE", rigid=True)
+        X_CT = as_transform(k["X_CT"], "X_CT", rigid=True)
+        self.X_BE.append(X_BE)
+        self.X_CT.append(X_CT)
+        self.stamps.append(k.get("stamp"))
+        self.sources.append(k.get("source", "pose"))
+        self._update_filter(X_BE, X_CT)
+
+
+__all__ = ["CalibrationSession", "CandidatePoses", "MIN_BATCH_SAMPLES", "SessionStep"]
