@@ -142,3 +142,23 @@ def test_eye_to_hand_wrong_size_is_named(tmp_path):
                                  truth["intrinsics"], "--mode", "eye-to-hand")
     assert code == 1 and [r["code"] for r in doc["verdict"]["reasons"]] == ["target_size"]
     assert abs(doc["corner_level"]["scale"]["factor"] - 0.04 / 0.038) < 0.005
+
+
+def test_one_robot_pose_off_by_10_mm_is_left_out_of_the_answer(tmp_path):
+    """A gross error in one robot pose is absorbed by that image's own pose error in the
+    corner-level model; judged against the robust level of the others it is rejected."""
+    lines = (IMAGES / "robot_poses.tum").read_text().splitlines()
+    data = [k for k, line in enumerate(lines) if line and not line.startswith("#")]
+    fields = lines[data[5]].split()
+    fields[1] = f"{float(fields[1]) + 0.010:.9f}"
+    lines[data[5]] = " ".join(fields)
+    robot = tmp_path / "robot.tum"
+    robot.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    assert main(["calibrate", "--images", str(IMAGES), "--robot", str(robot), "--target",
+                 TRUTH["target"], "--intrinsics", str(IMAGES / "intrinsics.yaml"), "--out",
+                 str(out)]) in (0, 1)
+    doc = json.loads((out / "calibration.json").read_text())
+    per = doc["corner_level"]["per_image"]
+    assert [p["used"] for p in per].count(False) == 1 and not per[5]["used"]
+    assert _within(X_EC, np.array(doc["X_EC"]["matrix"]), doc["X_EC"], k=3.0)
