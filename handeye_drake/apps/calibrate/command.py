@@ -298,6 +298,8 @@ def run_calibrate_command(args) -> int:
             if p.suffix == ".sh":
                 p.chmod(0o755)
             written.append(p)
+    from .report_html import write_report_html
+    written.insert(1, write_report_html(result, streams, out))  # listed first: read it first
     out.finish(written)
     if streams.images:
         print(_image_table(streams))
