@@ -15,7 +15,7 @@ import argparse
 import math
 
 from ...estimation.solvers import METHODS
-from ...recorded.formats import FORMATS, MAX_TRANSLATION
+from ...recorded.formats import FORMAT_NAMES, MAX_TRANSLATION
 from ..argtypes import positive_float
 from ..outputs import prepare_output_dir
 from .corners import REFINE_CHOICES, calibrate_images
@@ -75,6 +75,14 @@ def _max_images_arg(text: str):
     return v or None
 
 
+def _format_arg(text: str):
+    from ...recorded.formats import check_format
+    try:
+        return check_format(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def _formats_arg(text: str):
     from ...recorded.exports import parse_formats
     try:
@@ -100,9 +108,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="images of the target: files, directories or globs, paired in natural "
                           "file-name order with the poses of --robot (one each)")
     fmt = p.add_argument_group("reading")
-    fmt.add_argument("--format", choices=FORMATS, default=None,
-                     help="pose file format (default: from the extension: .tum/.txt, .csv, "
-                          ".yaml/.yml)")
+    fmt.add_argument("--format", type=_format_arg, default=None, metavar="FORMAT",
+                     help=f"pose file format: {', '.join(FORMAT_NAMES)} (default: from the "
+                          "extension: .tum/.txt, .csv, .yaml/.yml). csv-rotvec: x y z rx ry rz "
+                          "(UR: rotation vector, rad); csv-euler:ORDER:UNIT: x y z a1 a2 a3, "
+                          "turns a1 a2 a3 about the axes of ORDER in turn — lowercase extrinsic "
+                          "(fixed axes), UPPERCASE intrinsic (turning axes), as scipy's "
+                          "Rotation.from_euler; UNIT deg|rad. KUKA X Y Z A B C: csv-euler:ZYX:deg, "
+                          "Fanuc X Y Z W P R: csv-euler:xyz:deg (both mm: --translation-scale "
+                          "0.001). Both take an optional leading timestamp")
+    for which in ("robot", "camera"):
+        fmt.add_argument(f"--{which}-format", type=_format_arg, default=None, metavar="FORMAT",
+                         help=f"the {which} file's format, overriding --format (e.g. a KUKA "
+                         "robot file with a TUM camera file)")
     fmt.add_argument("--camera-pose-is-camera-in-target", action="store_true",
                      help="the camera poses are X_TC (camera in target), not X_CT")
     for which in ("robot", "camera"):
@@ -253,13 +271,15 @@ def run_calibrate_command(args) -> int:
                               args.camera_frames, args.camera_pose_is_camera_in_target)
     elif args.images:
         streams = image_streams(args.images, args.robot, args.target, args.intrinsics,
-                                args.format, robot_scale, args.robot_quaternion_order,
+                                args.robot_format or args.format, robot_scale,
+                                args.robot_quaternion_order,
                                 drawings_dir=out)
     else:
         streams = file_streams(args.robot, args.camera, args.format,
                                args.camera_pose_is_camera_in_target, robot_scale, camera_scale,
                                args.max_translation, args.time_scale,
-                               args.robot_quaternion_order, args.camera_quaternion_order)
+                               args.robot_quaternion_order, args.camera_quaternion_order,
+                               args.robot_format, args.camera_format)
     robot_accuracy = args.robot_accuracy if any(args.robot_accuracy) else None
     corner_level = bool(streams.detections) and not args.fix
     settings = dict(
