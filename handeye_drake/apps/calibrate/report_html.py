@@ -378,7 +378,8 @@ def _images_html(result, streams) -> str:
     rms_all = np.array([s["rms_px"] for s in samples])
     out = [f'<p>{len(samples)} images in the calibration, worst first by the RMS of '
            "detected − predicted corners, the prediction through the calibrated chain "
-           f"X_CT = {hand_name(result.mode)}⁻¹ · X_R⁻¹ · {fixed_name(result.mode)} and the "
+           f"X_CT = {hand_name(result.mode)}⁻¹ · X_R⁻¹ · {fixed_name(result.mode)} (X_R = "
+           + ("X_BE" if result.mode == "eye_in_hand" else "X_EB") + ", the robot's pose) and the "
            "intrinsics the answer used (no per-image pose error: what the calibration alone "
            f"predicts). Median {np.nanmedian(rms_all):.3f} px, worst {np.nanmax(rms_all):.3f} "
            'px. The fit\'s own RMS includes each image\'s estimated pose error.</p>'
@@ -458,7 +459,7 @@ def _image_rms_plot(samples, name) -> str:
     ax.set_title("Corner residuals per image")
     ax.grid(True, axis="y", alpha=0.3)
     top = np.nanmax(np.concatenate([rms, fit_rms])) if len(rms) else 1.0
-    ax.set_ylim(0, 1.4 * top if np.isfinite(top) and top > 0 else 1.0)  # room for the legend
+    ax.set_ylim(0, 1.5 * top if np.isfinite(top) and top > 0 else 1.0)  # room for the legend
     ax.legend(fontsize=8, loc="upper right", ncol=2)
     return _fig_uri(fig)
 
