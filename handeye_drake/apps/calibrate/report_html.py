@@ -386,7 +386,11 @@ def _images_html(result, streams) -> str:
            '<p class="legend"><span style="color:#1a9e47">◯ detected corner</span>'
            '<span style="color:#d62d20">+ predicted corner</span>'
            f'<span style="color:#b89600">— residual × {mag:g}</span></p>']
-    plot = _img(_image_rms_plot(samples, name), "RMS px per image")
+    def short(s):  # plot ticks: a bag image by its message number
+        r = records.get(s["line"])
+        return f"msg {r.message}" if r is not None and r.message is not None else name(s)
+
+    plot = _img(_image_rms_plot(samples, short), "RMS px per image")
     rows = []
     for rank, s in enumerate(order, 1):
         link = f'<a href="#img-{s["sample"]}">{_e(name(s))}</a>' if rank <= MAX_PANELS \
