@@ -291,14 +291,21 @@ def run_calibrate_command(args) -> int:
         robot_accuracy=robot_accuracy, quaternion_streams=streams.quaternion_streams,
         camera_resampler=None if corner_level else streams.camera_resampler,
         online=args.online, online_step_deg=args.online_step)
-    if corner_level:
-        result = calibrate_images(streams, settings, args.refine_intrinsics)
-        intrinsics_used = result.corners.camera_intrinsics(streams.intrinsics) \
-            if result.corners is not None else streams.intrinsics
-    else:
-        result = calibrate_streams(streams.robot, streams.camera, **settings)
-        intrinsics_used = streams.intrinsics
+    # A wrong Euler convention is named (by the verdict, or the error), not left to other guesses.
+    from .euler_check import check_robot_euler, explain_failure
+    robot_fmt = args.robot_format or args.format
+    try:
+        if corner_level:
+            result = calibrate_images(streams, settings, args.refine_intrinsics)
+            intrinsics_used = result.corners.camera_intrinsics(streams.intrinsics) \
+                if result.corners is not None else streams.intrinsics
+        else:
+            result = calibrate_streams(streams.robot, streams.camera, **settings)
+            intrinsics_used = streams.intrinsics
+    except ValueError as e:
+        raise explain_failure(e, streams, args.robot, robot_fmt, robot_scale, settings) from None
     result.inputs = streams.inputs
+    check_robot_euler(result, streams, args.robot, robot_fmt, robot_scale)
     if streams.images:
         result.inputs["images"]["per_image"] = [vars(r) for r in streams.images]
     written = [write_json(result, out.path("calibration.json"))]
