@@ -198,17 +198,42 @@ def _record_of_line(streams) -> dict:
             for k, r in enumerate(streams.images)}
 
 
+def _step_down(raw: float) -> float:
+    """The largest 1-2-5 step ≤ raw (0.1 … 5e5)."""
+    steps = [m * 10 ** e for e in range(-1, 6) for m in (1, 2, 5)]
+    return float(max([s for s in steps if s <= raw] or [steps[0]]))
+
+
 def magnification(samples) -> float:
-    """One factor for every panel (1-2-5 steps): the 95th percentile of the residual lengths
-    drawn ``ARROW_PX`` long."""
+    """One factor for the panels (1-2-5 steps): the 75th percentile of the residual lengths over
+    every corner drawn ``ARROW_PX`` long (a percentile a few bad images do not set)."""
     norms = np.concatenate([np.linalg.norm(s["residuals"], axis=1) for s in samples]
                            or [np.zeros(0)])
     norms = norms[np.isfinite(norms)]
-    if not len(norms) or np.percentile(norms, 95) <= 0:
+    if not len(norms) or np.percentile(norms, 75) <= 0:
         return 1.0
-    raw = ARROW_PX / float(np.percentile(norms, 95))
-    steps = [m * 10 ** e for e in range(-1, 6) for m in (1, 2, 5)]
-    return float(max([s for s in steps if s <= raw] or [steps[0]]))
+    return _step_down(ARROW_PX / float(np.percentile(norms, 75)))
+
+
+def panel_magnification(sample, mag: float) -> float:
+    """``mag``, or a smaller factor for an image whose residuals would be drawn longer than
+    4 × ``ARROW_PX`` with it (they would leave the picture)."""
+    norms = np.linalg.norm(sample["residuals"], axis=1)
+    norms = norms[np.isfinite(norms)]
+    if not len(norms) or mag * float(np.percentile(norms, 95)) <= 4 * ARROW_PX:
+        return mag
+    return min(mag, _step_down(ARROW_PX / float(np.percentile(norms, 95))))
+
+
+def off_the_chain(samples) -> set:
+    """Samples whose corners the calibrated chain predicts far worse than the others' (RMS beyond
+    4 × the median image's and 0.5 px): a robot pose or an image that does not fit, even when
+    the fit absorbed it in that image's pose error."""
+    rms = np.array([s["rms_px"] for s in samples], float)
+    if not np.isfinite(rms).any():
+        return set()
+    bound = max(4 * float(np.nanmedian(rms)), 0.5)
+    return {s["sample"] for s in samples if np.isfinite(s["rms_px"]) and s["rms_px"] > bound}
 
 
 def _jpeg_uri(path: str, width: int) -> tuple[str, int, int]:
@@ -369,13 +394,20 @@ def _images_html(result, streams) -> str:
         r = records.get(s["line"])
         return (r.label() if r is not None else f"line {s['line']}")
 
+    far = off_the_chain(samples)
+
     def status(s):
         if s["status"] == "outlier":
-            return '<span class="bad">rejected (outlier)</span>'
-        return {"fit": "in the answer" if result.corners is not None else "fit",
-                "held_out": "held out", "excluded": "excluded"}.get(s["status"], s["status"])
+            text = '<span class="bad">rejected (outlier)</span>'
+        else:
+            text = {"fit": "in the answer" if result.corners is not None else "fit",
+                    "held_out": "held out", "excluded": "excluded"}.get(s["status"], s["status"])
+        if s["sample"] in far:
+            text += ('; <span class="bad">far off the calibrated chain: check this image\'s '
+                     "robot pose</span>")
+        return text
 
-    rms_all = np.array([s["rms_px"] for s in samples])
+    rms_all = np.array([s["rms_px"] for s in samples], float)
     out = [f'<p>{len(samples)} images in the calibration, worst first by the RMS of '
            "detected − predicted corners, the prediction through the calibrated chain "
            f"X_CT = {hand_name(result.mode)}⁻¹ · X_R⁻¹ · {fixed_name(result.mode)} (X_R = "
@@ -386,6 +418,12 @@ def _images_html(result, streams) -> str:
            '<p class="legend"><span style="color:#1a9e47">◯ detected corner</span>'
            '<span style="color:#d62d20">+ predicted corner</span>'
            f'<span style="color:#b89600">— residual × {mag:g}</span></p>']
+    if far:
+        names = ", ".join(name(s) for s in order if s["sample"] in far)
+        out.append(f'<p class="bad">{len(far)} image{"s" * (len(far) > 1)} far off the '
+                   f"calibrated chain ({_e(names)}): the robot pose recorded with "
+                   f"{'them' if len(far) > 1 else 'it'} does not fit the others — check "
+                   "the pairing of images and poses, or record again.</p>")
     def short(s):  # plot ticks: a bag image by its message number
         r = records.get(s["line"])
         return f"msg {r.message}" if r is not None and r.message is not None else name(s)
@@ -419,7 +457,8 @@ def _images_html(result, streams) -> str:
         source = (r.drawing if from_bag else r.path) if r is not None else ""
         try:
             uri, w, h = _jpeg_uri(source, width)
-            picture = _panel_svg(s, uri, w, h, mag)
+            m = panel_magnification(s, mag)
+            picture = _panel_svg(s, uri, w, h, m)
         except (ValueError, OSError) as e:
             picture = f'<p class="err">image not embedded: {_e(e)}</p>'
         where = "" if r is None or r.robot_line is None else f", robot line {r.robot_line}"
@@ -427,7 +466,8 @@ def _images_html(result, streams) -> str:
             f'<div class="panel" id="img-{s["sample"]}">{picture}<div class="cap">'
             f'<b>#{rank} {_e(name(s))}</b>{_e(where)} — RMS {_num(s["rms_px"], "{:.3f}")} px, '
             f'max {_num(s["max_px"], "{:.3f}")} px over {len(s["residuals"])} corners; '
-            f'{status(s)} <a href="#images">↑ index</a></div></div>')
+            f'{status(s)}' + ("" if m == mag else f"; residuals × {m:g} here")
+            + ' <a href="#images">↑ index</a></div></div>')
     if len(order) > MAX_PANELS:
         panels.append(f"<p>{len(order) - MAX_PANELS} more images: see the index.</p>")
     if from_bag:
