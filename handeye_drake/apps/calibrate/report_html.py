@@ -96,12 +96,13 @@ def _num(v, fmt="{:.3g}") -> str:
     return "∞" if math.isinf(v) else ("–" if math.isnan(v) else fmt.format(v))
 
 
-def _fig_uri(fig, fmt: str = "svg", dpi: int = 100) -> str:
-    """A matplotlib figure as a data URI (SVG text kept as text: small, sharp at any zoom)."""
+def _fig_uri(fig, fmt: str = "svg", dpi: int = 100, tight: bool = True) -> str:
+    """A matplotlib figure as a data URI (SVG text kept as text: small, sharp at any zoom);
+    ``tight`` crops it (one more draw: not for figures laid out already)."""
     import matplotlib.pyplot as plt
     buf = io.BytesIO()
     with plt.rc_context({"svg.fonttype": "none"}):
-        fig.savefig(buf, format=fmt, dpi=dpi, bbox_inches="tight")
+        fig.savefig(buf, format=fmt, dpi=dpi, bbox_inches="tight" if tight else None)
     plt.close(fig)
     mime = "image/svg+xml" if fmt == "svg" else "image/png"
     return f"data:{mime};base64," + base64.b64encode(buf.getvalue()).decode("ascii")
@@ -582,20 +583,22 @@ def _residual_components_plot(result) -> str:
     for ax in axes[1]:
         ax.set_xlabel(xlabel, fontsize=9)
     axes[0, 0].legend(fontsize=7, loc="lower left")
-    fig.suptitle("Pose residual components (measured − predicted X_CT, in the camera frame); "
-                 "band: ±3σ of the noise the fit estimated; points beyond an axis are drawn on its edge",
-                 fontsize=10)
-    fig.tight_layout()
-    return _fig_uri(fig)
+    fig.suptitle("Pose residual components (measured − predicted X_CT, in the camera frame)\n"
+                 "band: ±3σ of the noise the fit estimated; points beyond an axis are drawn on "
+                 "its edge", fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.92))
+    return _fig_uri(fig, tight=False)
 
 
 def _poses_3d_plot(result, streams) -> str:
     """The base frame B, the flange E and camera C of every sample, and the target T, in B
     (eye-in-hand: X_BC = X_BE · X_EC, one X_BT; eye-to-hand: one X_BC, X_BT = X_BE · X_ET),
-    seen obliquely and from above."""
+    seen obliquely and from above. Lines are batched per colour (one collection each): a few
+    hundred separate 3D lines take seconds to draw."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
     mode, fit = result.mode, result.fit
     X_R = np.asarray(result.aligned.X_BE, float)
     X_BE = X_R if mode == "eye_in_hand" else np.linalg.inv(X_R)
@@ -604,6 +607,7 @@ def _poses_3d_plot(result, streams) -> str:
     else:
         X_BC, X_BT = fit.X_H[None], X_BE @ fit.X_F[None]
     status = _sample_status(result)
+    drawn = _drawn(status)
     corners_T = _target_outline(streams)
     points = np.concatenate([X_BE[:, :3, 3], X_BC[:, :3, 3], X_BT[:, :3, 3],
                              np.zeros((1, 3))])
@@ -611,60 +615,64 @@ def _poses_3d_plot(result, streams) -> str:
     size = 0.06 * span
     colours = {"fit": "#2f6db0", "held_out": "#1a9e47", "outlier": "#d62d20",
                "excluded": "0.6"}
+    axis_colours = ("#d62d20", "#1a9e47", "#2455c3")
+    tips = np.array([[-0.6, -0.45, 1], [0.6, -0.45, 1], [0.6, 0.45, 1], [-0.6, 0.45, 1]]) * size
+
+    def frame(X, length):
+        return [[(X[:3, 3], X[:3, 3] + length * X[:3, i])] for i in range(3)]
+
+    def frustum(X):
+        w = tips @ X[:3, :3].T + X[:3, 3]
+        return [(X[:3, 3], p) for p in w] + [(w[i], w[(i + 1) % 4]) for i in range(4)]
+
+    def outline(T):
+        w = corners_T @ T[:3, :3].T + T[:3, 3]
+        return [(w[i], w[(i + 1) % 4]) for i in range(4)]
+
+    # (segments, colour, width, alpha) of everything drawn, and the legend entries.
+    groups, legend = [], [("flange E", dict(marker="o", color="0.3", ms=3, ls="none"))]
+    frames = [(np.eye(4), 2 * size, 2.5)]
+    targets = X_BT if len(X_BT) == 1 else X_BT[drawn]
+    groups.append(([seg for T in targets for seg in outline(T)], "k",
+                   1.5 if len(X_BT) == 1 else 0.7, 1.0))
+    if mode == "eye_in_hand":
+        frames.append((X_BT[0], 1.5 * size, 1.5))
+        target = X_BT[0][:3, 3]
+        for s_, c in colours.items():
+            ks = [k for k in drawn if status[k] == s_]
+            if not ks:
+                continue
+            groups.append(([seg for k in ks for seg in frustum(X_BC[k])], c,
+                           1.6 if s_ == "outlier" else 0.9, 1.0))
+            # The optical axis, as long as the distance to the target: where the camera looks.
+            groups.append(([(X_BC[k][:3, 3], X_BC[k][:3, 3] + float(np.linalg.norm(
+                target - X_BC[k][:3, 3])) * X_BC[k][:3, 2]) for k in ks], c, 0.4, 0.5))
+            legend.append((f"camera C ({s_.replace('_', ' ')})", dict(color=c)))
+        groups.append(([(X_BE[k, :3, 3], X_BC[k][:3, 3]) for k in drawn], "0.55", 0.6, 1.0))
+        labels = [(X_BT[0][:3, 3], "  T")]
+    else:
+        groups.append((frustum(X_BC[0]), "#2f6db0", 1.5, 1.0))
+        frames.append((X_BC[0], 1.5 * size, 1.5))
+        bad = [k for k in range(len(X_BT)) if status[k] == "outlier"]
+        if bad:
+            groups.append(([seg for k in bad for seg in outline(X_BT[k])], "#d62d20", 1.5, 1.0))
+            legend.append(("target T (outlier)", dict(color="#d62d20")))
+        legend.append(("target T per sample", dict(color="k")))
+        labels = [(X_BC[0][:3, 3], "  C")]
+    for X, length, lw in frames:
+        for i, seg in enumerate(frame(X, length)):
+            groups.append((seg, axis_colours[i], lw, 1.0))
     fig = plt.figure(figsize=(12.5, 6))
     for n, (elev, azim, title) in enumerate(((25, -60, "oblique"), (89, -90, "from above"))):
         ax = fig.add_subplot(1, 2, n + 1, projection="3d")
-
-        def frame(X, length, lw=1.5):
-            for i, c in enumerate(("#d62d20", "#1a9e47", "#2455c3")):
-                p = X[:3, 3]
-                ax.plot(*zip(p, p + length * X[:3, i]), color=c, lw=lw)
-
-        def frustum(X, colour, lw):
-            tips = np.array([[-0.6, -0.45, 1], [0.6, -0.45, 1], [0.6, 0.45, 1],
-                             [-0.6, 0.45, 1]]) * size
-            w = tips @ X[:3, :3].T + X[:3, 3]
-            for p in w:
-                ax.plot(*zip(X[:3, 3], p), color=colour, lw=lw)
-            ring = np.vstack([w, w[:1]])
-            ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color=colour, lw=lw)
-
-        frame(np.eye(4), 2 * size, lw=2.5)
+        for segments, colour, lw, alpha in groups:
+            if segments:
+                ax.add_collection3d(Line3DCollection(np.asarray(segments, float), colors=colour,
+                                                     linewidths=lw, alpha=alpha))
+        ax.plot(X_BE[:, 0, 3], X_BE[:, 1, 3], X_BE[:, 2, 3], "o", color="0.3", ms=2.5)
         ax.text(0, 0, 0, "  B", fontsize=10)
-        for T in (X_BT if len(X_BT) == 1 else X_BT[_drawn(status)]):
-            w = corners_T @ T[:3, :3].T + T[:3, 3]
-            ring = np.vstack([w, w[:1]])
-            ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="k",
-                    lw=1.5 if len(X_BT) == 1 else 0.7)
-        ax.plot(X_BE[:, 0, 3], X_BE[:, 1, 3], X_BE[:, 2, 3], "o", color="0.3", ms=2.5,
-                label="flange E")
-        if mode == "eye_in_hand":
-            frame(X_BT[0], 1.5 * size)
-            ax.text(*X_BT[0][:3, 3], "  T", fontsize=10)
-            target = X_BT[0][:3, 3]
-            for k in _drawn(status):
-                X = X_BC[k]
-                c = colours.get(status[k], "0.5")
-                frustum(X, c, 1.6 if status[k] == "outlier" else 0.9)
-                ax.plot(*zip(X_BE[k, :3, 3], X[:3, 3]), color="0.55", lw=0.6)
-                # The optical axis, as long as the distance to the target: where it looks.
-                d = float(np.linalg.norm(target - X[:3, 3]))
-                ax.plot(*zip(X[:3, 3], X[:3, 3] + d * X[:3, 2]), color=c, lw=0.4, alpha=0.5)
-            for s, c in colours.items():
-                if (status == s).any():
-                    ax.plot([], [], color=c, label=f"camera C ({s.replace('_', ' ')})")
-        else:
-            frustum(X_BC[0], "#2f6db0", 1.5)
-            frame(X_BC[0], 1.5 * size)
-            ax.text(*X_BC[0][:3, 3], "  C", fontsize=10)
-            for k, T in enumerate(X_BT):
-                if status[k] == "outlier":
-                    w = corners_T @ T[:3, :3].T + T[:3, 3]
-                    ring = np.vstack([w, w[:1]])
-                    ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="#d62d20", lw=1.5)
-            ax.plot([], [], color="k", label="target T per sample")
-            if (status == "outlier").any():
-                ax.plot([], [], color="#d62d20", label="target T (outlier)")
+        for p, text in labels:
+            ax.text(*p, text, fontsize=10)
         lo, hi = points.min(axis=0) - size, points.max(axis=0) + size
         centre, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2
         ax.set_xlim(centre[0] - half, centre[0] + half)
@@ -675,6 +683,8 @@ def _poses_3d_plot(result, streams) -> str:
         ax.set_ylabel("y_B (m)")
         if n == 0:
             ax.set_zlabel("z_B (m)")
+            for label, style in legend:
+                ax.plot([], [], label=label, **style)
             ax.legend(fontsize=8, loc="upper left")
         else:
             ax.set_zticklabels([])
@@ -682,8 +692,8 @@ def _poses_3d_plot(result, streams) -> str:
         ax.set_title(title, fontsize=10)
     fig.suptitle("Poses in the robot base B through the result (axes: x red, y green, z blue)",
                  fontsize=11)
-    fig.subplots_adjust(left=0.0, right=1.0, wspace=0.0)
-    return _fig_uri(fig, "png", dpi=100)
+    fig.subplots_adjust(left=0.0, right=1.0, top=0.92, bottom=0.02, wspace=0.0)
+    return _fig_uri(fig, "png", dpi=100, tight=False)
 
 
 def _drawn(status, most: int = 60) -> np.ndarray:
