@@ -1,6 +1,6 @@
 # Two entry points that work on a fresh machine: `make run` and `make test`.
 # Both create ./.venv, install the package with its test extras, and (when root and missing)
-# the system graphviz package used to render diagram pictures.
+# the system graphviz package used to render diagram pictures and chromium for the report test.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN     = $(VENV)/bin
@@ -14,7 +14,8 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install -e '.[test]'
 	touch $(STAMP)
 
-# graphviz is optional (.dot is always written; .svg needs `dot`).
+# graphviz is optional (.dot is always written; .svg needs `dot`); chromium (headless) only
+# runs the browser test of calibrate's report.html.
 system-deps:
 	@command -v dot >/dev/null 2>&1 || { \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
@@ -22,6 +23,12 @@ system-deps:
 	     (apt-get update >/dev/null 2>&1 && apt-get install -y graphviz >/dev/null 2>&1)) || \
 	    echo "note: could not install graphviz; diagrams are written as .dot only"; \
 	  else echo "note: graphviz not installed; diagrams are written as .dot only"; fi; }
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get install -y chromium >/dev/null 2>&1 || \
+	     (apt-get update >/dev/null 2>&1 && apt-get install -y chromium >/dev/null 2>&1)) || \
+	    echo "note: could not install chromium; the browser test of report.html is skipped"; \
+	  else echo "note: chromium not installed; the browser test of report.html is skipped"; fi; }
 
 setup: system-deps $(STAMP)
 

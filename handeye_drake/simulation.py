@@ -653,6 +653,9 @@ class ScenarioResult:
     #: found frame).
     detector_covariance: np.ndarray | None = None
     frames: list = field(default_factory=list)
+    #: (6, 6) the calibrator's covariance of the final X_EC's error [δθ (rad); δt (m)]
+    #: (R = exp([δθ]×) R̂, about / along E's axes), at the end of the run.
+    X_EC_covariance: np.ndarray | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -677,6 +680,14 @@ class ScenarioResult:
             "rejected_measurements": int(self.calibrator_status[-1, 2]),
             "final_X_EC_rotation_std_deg": [float(v) for v in self.X_EC_std[-1, :3]],
             "final_X_EC_translation_std": [float(v) for v in self.X_EC_std[-1, 3:]],
+            # The estimates themselves (X_EC: camera C in the end-effector E, metres).
+            "final_X_EC": np.asarray(self.X_EC_estimates[-1], float).tolist(),
+            "final_X_EC_covariance": None if self.X_EC_covariance is None else
+            np.asarray(self.X_EC_covariance, float).tolist(),
+            "covariance_convention": "6x6 of [dtheta (rad); dt (m)], R = exp([dtheta]x) R_hat "
+                                     "about E's axes, t = t_hat + dt",
+            "two_motion_X_EC": np.asarray(self.X_EC_initial, float).tolist() if solved else None,
+            "true_X_EC": np.asarray(self.X_EC_true, float).tolist(),
             "simulated_time_s": self.sim_time,
             "wall_time_s": self.wall_time,
             "real_time_factor": self.real_time_factor,
@@ -751,6 +762,8 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         raise RuntimeError(f"non-finite values logged on {bad}")
     calibrator_context = loop.calibrator.GetMyContextFromRoot(context)
     mode = float(loop.calibrator.get_status_output_port().Eval(calibrator_context)[0])
+    covariance = np.asarray(loop.calibrator.get_X_EC_covariance_output_port().Eval(
+        calibrator_context), float).reshape(6, 6)
     diagnostics = loop.calibrator.estimator(calibrator_context).diagnostics()
     if mode == STATUS_INIT_FAILED:
         diagnostics.insert(0, "the two-motion solution failed (the self-calibration motions do "
@@ -779,7 +792,7 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         X_CT_samples=np.array([vector_to_pose(v) for v in data["X_CT_measured"]]),
         servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall,
         calibrator_mode=mode, diagnostics=diagnostics + _detector_diagnostics(loop, logs, times),
-        V_WE_E_command=data["V_WE_E_command"],
+        V_WE_E_command=data["V_WE_E_command"], X_EC_covariance=covariance,
         **_detector_results(scenario, loop, logs, context))
 
 

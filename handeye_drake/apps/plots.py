@@ -60,20 +60,37 @@ def plot_image_trajectories(result, path) -> Path:
 
 
 def plot_handeye_errors(result, path) -> Path:
-    """Like the paper's Fig. 10: errors over time, the two-motion error as a horizontal line."""
+    """Like the paper's Fig. 10: errors over time, the two-motion error as a horizontal line,
+    the estimate's own ±1σ as a band around its error (σ: the RMS radius √trace of the
+    filter's rotation (deg) / translation covariance, the latter in % of the true ‖t_EC‖) and
+    the self-calibration motions (before servoing starts) shaded."""
     fig, axes = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
     mask = result.times >= result.servo_start_time
-    for ax, series, initial, label in (
-            (axes[0], result.rotation_error_deg, result.initial_rotation_error_deg,
+    std = np.asarray(result.X_EC_std, float)
+    t_norm = max(float(np.linalg.norm(np.asarray(result.X_EC_true)[:3, 3])), 1e-12)
+    sigmas = (np.linalg.norm(std[:, :3], axis=1), 100 * np.linalg.norm(std[:, 3:], axis=1) / t_norm)
+    for ax, series, initial, sigma, label in (
+            (axes[0], result.rotation_error_deg, result.initial_rotation_error_deg, sigmas[0],
              "rotation error (deg)"),
             (axes[1], 100 * result.translation_error_rel,
-             100 * result.initial_translation_error_rel, "translation error (% of ‖t‖)")):
-        ax.plot(result.times[mask], series[mask], label="on-line Kalman estimate")
+             100 * result.initial_translation_error_rel, sigmas[1],
+             "translation error (% of ‖t‖)")):
+        if np.isfinite(result.servo_start_time):
+            ax.axvspan(result.times[0], result.servo_start_time, color="0.85", lw=0,
+                       label="self-calibration motions")
+        t, e, s = result.times[mask], series[mask], sigma[mask]
+        ax.fill_between(t, np.maximum(e - s, 0.0), e + s, color="C0", alpha=0.2, lw=0,
+                        label="±1σ (the filter's own)")
+        ax.plot(t, e, label="on-line Kalman estimate")
         ax.axhline(initial, color="C3", ls="--", label="two-motion (Daniilidis) estimate")
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
         ax.set_ylim(bottom=0)
-    axes[0].legend()
+        if len(e):  # the band's first, widest samples would flatten the rest
+            top = max(float(np.nanpercentile(e + s, 98)), float(initial)) * 1.15
+            if np.isfinite(top) and top > 0:
+                ax.set_ylim(0, top)
+    axes[0].legend(fontsize=8)
     axes[1].set_xlabel("time (s)")
     axes[0].set_title("Hand-eye error of X_EC during servoing")
     fig.tight_layout()

@@ -18,6 +18,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from .corners import REFINE_CHOICES, calibrate_images
+from .euler_check import check_robot_euler, explain_failure
 from .inputs import (DEFAULT_MAX_IMAGES, Streams, bag_image_streams, bag_streams, file_streams,
                      image_streams)
 from .pipeline import CalibrationResult, calibrate_streams
@@ -113,13 +114,22 @@ def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()
     which the corner-level fit does not take yet)."""
     corner_level = bool(streams.detections) and not options.fixed
     settings = options.stream_settings(streams, corner_level)
-    if corner_level:
-        result = calibrate_images(streams, settings, options.refine_intrinsics)
-        intrinsics = result.corners.camera_intrinsics(streams.intrinsics) \
-            if result.corners is not None else streams.intrinsics
-    else:
-        result = calibrate_streams(streams.robot, streams.camera, **settings)
-        intrinsics = streams.intrinsics
+    # A robot file of Euler angles: its convention is checked against the data like the other
+    # readings (``euler_check``).
+    robot_in = streams.inputs.get("robot", {}) if isinstance(streams.inputs, dict) else {}
+    euler = (robot_in.get("path"), robot_in.get("format"),
+             robot_in.get("translation_scale", 1.0))
+    try:
+        if corner_level:
+            result = calibrate_images(streams, settings, options.refine_intrinsics)
+            intrinsics = result.corners.camera_intrinsics(streams.intrinsics) \
+                if result.corners is not None else streams.intrinsics
+        else:
+            result = calibrate_streams(streams.robot, streams.camera, **settings)
+            intrinsics = streams.intrinsics
+    except ValueError as e:
+        raise explain_failure(e, streams, euler[0], euler[1], euler[2], settings) from None
+    check_robot_euler(result, streams, *euler)
     result.inputs = streams.inputs
     if streams.images:
         result.inputs["images"]["per_image"] = [dataclasses.asdict(r) for r in streams.images]
@@ -134,7 +144,8 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
                 max_images: int | None = DEFAULT_MAX_IMAGES, robot_translation_scale: float = 1.0,
                 camera_translation_scale: float = 1.0, max_translation: float | None = None,
                 time_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
-                camera_quaternion_order: str = "xyzw", drawings_dir=None) -> Streams:
+                camera_quaternion_order: str = "xyzw", robot_format: str | None = None,
+                camera_format: str | None = None, drawings_dir=None) -> Streams:
     """``Streams`` of one of: ``robot`` and ``camera`` pose files; ``images`` of a ``target``
     with the ``robot`` pose file; a ``bag`` with ``robot_frames`` and ``camera_topic``,
     ``camera_frames`` or ``image_topic`` (with ``target``). The other arguments are the reading
@@ -157,12 +168,14 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
         return bag_streams(bag, robot_frames, camera_topic, camera_frames,
                            camera_pose_is_camera_in_target)
     if images is not None:
-        return image_streams(images, robot, target, intrinsics, format, robot_translation_scale,
-                             robot_quaternion_order, drawings_dir=drawings_dir)
+        return image_streams(images, robot, target, intrinsics, robot_format or format,
+                             robot_translation_scale, robot_quaternion_order,
+                             drawings_dir=drawings_dir)
     return file_streams(robot, camera, format, camera_pose_is_camera_in_target,
                         robot_translation_scale, camera_translation_scale,
                         MAX_TRANSLATION if max_translation is None else max_translation,
-                        time_scale, robot_quaternion_order, camera_quaternion_order)
+                        time_scale, robot_quaternion_order, camera_quaternion_order,
+                        robot_format, camera_format)
 
 
 def calibrate(robot=None, camera=None, *, images=None, bag=None,

@@ -55,11 +55,13 @@ def file_streams(robot_path, camera_path, fmt: str | None = None, camera_in_targ
                  robot_translation_scale: float = 1.0, camera_translation_scale: float = 1.0,
                  max_translation: float | None = MAX_TRANSLATION, time_scale: float = 1.0,
                  robot_quaternion_order: str = "xyzw",
-                 camera_quaternion_order: str = "xyzw") -> Streams:
+                 camera_quaternion_order: str = "xyzw", robot_format: str | None = None,
+                 camera_format: str | None = None) -> Streams:
     """Reads the robot (X_BE) and camera (X_CT) pose files, each exactly once (one file holding
-    both, e.g. OpenCV YAML, is read once)."""
-    robot_fmt = fmt or infer_format(robot_path)
-    camera_fmt = fmt or infer_format(camera_path)
+    both, e.g. OpenCV YAML, is read once). Formats: ``robot_format`` / ``camera_format``, else
+    ``fmt`` for both, else from each file's extension."""
+    robot_fmt = robot_format or fmt or infer_format(robot_path)
+    camera_fmt = camera_format or fmt or infer_format(camera_path)
     same = str(robot_path) == str(camera_path)
     raw = read_input(robot_path) if same else None
     robot = read_poses(raw or robot_path, "robot", robot_fmt, False, robot_translation_scale,

@@ -15,6 +15,19 @@ quaternion, scalar last), separated by spaces, tabs and/or commas; ``#`` starts 
 by a timestamp (17 numbers); every line of a file must have the same count; separators and
 comments as in ``tum`` (a header line must therefore start with ``#``).
 
+``csv-rotvec``: one pose per line, ``x y z rx ry rz`` (Universal Robots' pose: translation, then
+the rotation vector — axis × angle, radians), optionally preceded by a timestamp (7 numbers);
+separators, comments and the same-count rule as ``csv-matrix``.
+
+``csv-euler:ORDER:UNIT``: one pose per line, ``x y z a1 a2 a3`` (optionally after a timestamp):
+the rotation is three turns by a1, a2, a3 about the axes ORDER names, in that order — lowercase
+``xyz``-letters are extrinsic (about the fixed parent axes: R = R_3(a3) · R_2(a2) · R_1(a1)),
+UPPERCASE intrinsic (about the axes as they turn: R = R_1(a1) · R_2(a2) · R_3(a3)), exactly
+``scipy.spatial.transform.Rotation.from_euler(ORDER, [a1, a2, a3])``; UNIT is ``deg`` or ``rad``.
+KUKA's X Y Z A B C is ``csv-euler:ZYX:deg`` (A about z, then B about the new y, then C about the
+newest x); Fanuc's X Y Z W P R is ``csv-euler:xyz:deg`` (W about the fixed x, P about the fixed
+y, R about the fixed z). Both robots write millimetres: ``translation_scale=0.001``.
+
 ``opencv-yaml``: what ``cv::FileStorage`` writes (``%YAML:1.0`` header, ``!!opencv-matrix``
 nodes with ``rows``/``cols``/``dt``/``data``). A small dedicated reader parses it (PyYAML does not
 understand ``%YAML:1.0`` and may be absent). Accepted top-level keys:
@@ -54,7 +67,9 @@ e.g. printed with few decimals, are projected on SO(3): the nearest rotation); a
 other than [0, 0, 0, 1]; duplicate or decreasing timestamps; timestamps that are not seconds (beyond
 ``MAX_TIMESTAMP_SECONDS`` or with a median period beyond ``MAX_PERIOD_SECONDS``: the message
 says whether they look like milliseconds, microseconds or nanoseconds and which ``time_scale``
-fixes them); translations longer than ``max_translation`` (default 10 m: millimetres?).
+fixes them); translations longer than ``max_translation`` (default 10 m: millimetres?); angles
+that are not in the declared unit (a rotation vector or a radian angle beyond 2π: degrees; every
+angle of a ``deg`` file within ±π: radians).
 """
 
 from __future__ import annotations
@@ -74,7 +89,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-FORMATS = ("tum", "csv-matrix", "opencv-yaml")
+FORMATS = ("tum", "csv-matrix", "opencv-yaml", "csv-rotvec")
+#: The parameterized format (``csv-euler:ORDER:UNIT``), its units, and every format's name.
+EULER_FORMAT = "csv-euler"
+ANGLE_UNITS = ("deg", "rad")
+FORMAT_NAMES = FORMATS + ("csv-euler:ORDER:UNIT",)
+#: A rotation vector or radian angle beyond 2π (+ this) is not in radians.
+_TWO_PI = 2 * math.pi + 1e-6
 STREAMS = ("robot", "camera")
 
 #: A quaternion whose norm differs from 1 by at most this is normalized; beyond, an error.
@@ -678,6 +699,10 @@ _BREAKS_TO_NL = bytes.maketrans(_BREAK_BYTES, b"\n" * len(_BREAK_BYTES))
 _UNICODE_BREAKS = (b"\xc2\x85", b"\xe2\x80\xa8", b"\xe2\x80\xa9")
 
 
+#: Field counts of the six-number CSV kinds (pose, or timestamp + pose) and their layout.
+_SIX = {"rotvec": "x y z rx ry rz", "euler": "x y z a1 a2 a3"}
+
+
 class _Table:
     """What a TUM or CSV file must look like: the allowed field counts and the messages."""
 
@@ -686,12 +711,20 @@ class _Table:
         self.count = 8 if kind == "tum" else None  # csv: fixed by the first data line
         self.first_line = None
 
+    @property
+    def counts(self) -> tuple:
+        return (8,) if self.kind == "tum" else (6, 7) if self.kind in _SIX else (16, 17)
+
     def check_count(self, number: int, got: int, content: str) -> None:
         if self.kind == "tum":
             if got != 8:
                 raise _err(self.source, number, "expected 8 numbers (timestamp tx ty tz qx qy qz "
                            f"qw), got {got}{self._hint(number, content)}")
-        elif got not in (16, 17):
+        elif self.kind in _SIX and got not in (6, 7):
+            raise _err(self.source, number, f"expected 6 numbers ({_SIX[self.kind]}) or 7 "
+                       f"(timestamp + those), got {got} (header lines must start with "
+                       f"'#'){self._hint(number, content, header=False)}")
+        elif self.kind not in _SIX and got not in (16, 17):
             raise _err(self.source, number, "expected 16 numbers (a row-major 4×4 matrix) or "
                        f"17 (timestamp + matrix), got {got} (header lines must start with "
                        f"'#'){self._hint(number, content, header=False)}")
@@ -767,7 +800,7 @@ class _Table:
         data_lines = np.flatnonzero(per_line)
         counts = per_line[data_lines]
         k = self.count if self.count is not None else int(counts[0])
-        if k not in ((8,) if self.kind == "tum" else (16, 17)) or np.any(counts != k):
+        if k not in self.counts or np.any(counts != k):
             return None
         try:
             v = np.fromstring(chunk, dtype=float, sep=" ")
@@ -827,8 +860,31 @@ def _table_chunks(table: _Table, data: bytes, progress):
         bar.close()
 
 
+def _six_rotations(v: np.ndarray, kind: str, euler, source: str, lines) -> np.ndarray:
+    """Rotation matrices (m, 3, 3) of the last three columns of ``v`` (rotation vectors, or Euler
+    angles ``euler`` = (ORDER, UNIT)), with the unit checks of the module docstring."""
+    a = v[:, -3:]
+    if kind == "rotvec":
+        norm = _row_norms(a)
+        bad = norm > _TWO_PI
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise _err(source, lines[k], f"rotation vector (rx ry rz) = {_fmt(a[k])} has norm "
+                       f"{norm[k]:.6g}, more than 2π: csv-rotvec takes radians (a UR pose) — "
+                       "are these degrees?")
+        return Rotation.from_rotvec(a).as_matrix()
+    order, unit = euler
+    if unit == "rad":
+        bad = np.abs(a).max(axis=1) > _TWO_PI
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise _err(source, lines[k], f"Euler angles {_fmt(a[k])} exceed 2π rad: degrees? "
+                       f"use --format csv-euler:{order}:deg")
+    return Rotation.from_euler(order, a, degrees=unit == "deg").as_matrix()
+
+
 def _parse_table(text, source: str, kind: str, translation_scale, max_translation, time_scale,
-                 progress) -> PoseStream:
+                 progress, euler=None) -> PoseStream:
     """TUM or CSV text → PoseStream. Each chunk is converted and validated as it comes (poses
     written into arrays sized by the line count: no per-line objects, no full copy of the
     numbers), so errors come in line order, chunk by chunk (syntax errors of a chunk first)."""
@@ -844,6 +900,7 @@ def _parse_table(text, source: str, kind: str, translation_scale, max_translatio
     t = np.empty(capacity)
     lines = np.empty(capacity, dtype=np.int64)
     n = 0
+    largest_angle = 0.0
     for v, numbers in _table_chunks(table, data, progress):
         m = len(v)
         chunk_lines = LineNumbers(numbers)
@@ -864,18 +921,30 @@ def _parse_table(text, source: str, kind: str, translation_scale, max_translatio
             X[:, :3, :3] = Rotation.from_quat(q / norm[:, None]).as_matrix()
             X[:, :3, 3] = v[:, 1:4]
             X[:, 3] = [0.0, 0.0, 0.0, 1.0]
+        elif kind in _SIX:
+            if not fin.all():
+                raise _err(source, chunk_lines[int(np.argmin(fin))],
+                           "contains NaN or infinite values")
+            X[:, :3, :3] = _six_rotations(v, kind, euler, source, chunk_lines)
+            X[:, :3, 3] = v[:, -6:-3]
+            X[:, 3] = [0.0, 0.0, 0.0, 1.0]
+            largest_angle = max(largest_angle, float(np.abs(v[:, -3:]).max()))
         else:
             if not fin.all():
                 raise _err(source, chunk_lines[int(np.argmin(fin))],
                            "contains NaN or infinite values")
             X[:] = v[:, -16:].reshape(m, 4, 4)
-        _check_poses(X, chunk_lines, source, scale, exact_rotations=kind == "tum")
+        _check_poses(X, chunk_lines, source, scale, exact_rotations=kind != "csv")
         t[n:n + m] = v[:, 0]
         lines[n:n + m] = numbers
         n += m
     if n == 0:
         raise _err(source, None, "no pose samples (the file is empty or only has comments)")
-    stamped = kind == "tum" or table.count == 17
+    if kind == "euler" and euler[1] == "deg" and n >= 3 and largest_angle <= math.pi + 1e-9:
+        # As degrees every turn would be under 3.2°: too little for a calibration — radians.
+        raise _err(source, None, f"every Euler angle is within ±π ({largest_angle:.4g} at most) "
+                   f"read as degrees: radians? use --format csv-euler:{euler[0]}:rad")
+    stamped = kind == "tum" or table.count in (7, 17)
     return _finish(P[:n], t[:n] if stamped else None, LineNumbers(lines[:n]), source, 1.0,
                    max_translation, time_scale, checked=True)
 
@@ -896,6 +965,57 @@ def parse_csv_matrix(text, source: str = "<csv>", translation_scale: float = 1.0
     numbers, the same count on every line); ``text`` is a str or UTF-8 bytes."""
     return _parse_table(text, source, "csv", translation_scale, max_translation, time_scale,
                         progress)
+
+
+def parse_csv_rotvec(text, source: str = "<csv>", translation_scale: float = 1.0,
+                     max_translation: float | None = MAX_TRANSLATION, time_scale: float = 1.0,
+                     progress: bool | None = None) -> PoseStream:
+    """Parses ``x y z rx ry rz`` lines (a UR pose: metres, rotation vector in radians),
+    optionally after a timestamp (6 or 7 numbers, the same count on every line)."""
+    return _parse_table(text, source, "rotvec", translation_scale, max_translation, time_scale,
+                        progress)
+
+
+def parse_csv_euler(text, order: str, unit: str, source: str = "<csv>",
+                    translation_scale: float = 1.0,
+                    max_translation: float | None = MAX_TRANSLATION, time_scale: float = 1.0,
+                    progress: bool | None = None) -> PoseStream:
+    """Parses ``x y z a1 a2 a3`` lines, optionally after a timestamp: the rotation is
+    ``Rotation.from_euler(order, [a1, a2, a3], degrees=unit == "deg")`` (lowercase order:
+    extrinsic, about the fixed axes; uppercase: intrinsic; see the module docstring)."""
+    order, unit = _euler_parameters(f"{EULER_FORMAT}:{order}:{unit}")
+    return _parse_table(text, source, "euler", translation_scale, max_translation, time_scale,
+                        progress, euler=(order, unit))
+
+
+def _euler_parameters(fmt: str) -> tuple[str, str]:
+    """(ORDER, UNIT) of ``csv-euler:ORDER:UNIT``; ValueError naming what is wrong."""
+    parts = str(fmt).split(":")
+    example = "e.g. csv-euler:ZYX:deg (KUKA A B C) or csv-euler:xyz:deg (Fanuc W P R)"
+    if len(parts) != 3 or parts[0] != EULER_FORMAT:
+        raise ValueError(f"format: expected csv-euler:ORDER:UNIT, {example}; got {fmt!r}")
+    order, unit = parts[1], parts[2].lower()
+    if len(order) != 3 or not (set(order) <= set("xyz") or set(order) <= set("XYZ")):
+        raise ValueError(f"format {fmt!r}: ORDER must be three of x, y, z, all lowercase "
+                         f"(extrinsic: about the fixed axes) or all uppercase (intrinsic: about "
+                         f"the turning axes), {example}")
+    if order[0].lower() == order[1].lower() or order[1].lower() == order[2].lower():
+        raise ValueError(f"format {fmt!r}: ORDER {order!r} turns twice in a row about one axis "
+                         f"(no two neighbouring letters may be the same), {example}")
+    if unit not in ANGLE_UNITS:
+        raise ValueError(f"format {fmt!r}: UNIT must be deg or rad, {example}")
+    return order, unit
+
+
+def check_format(fmt: str) -> str:
+    """``fmt`` if it is one of ``FORMATS`` or a valid ``csv-euler:ORDER:UNIT`` (its unit in
+    lowercase), else ValueError naming the formats."""
+    if fmt in FORMATS:
+        return fmt
+    if isinstance(fmt, str) and fmt.split(":", 1)[0] == EULER_FORMAT:
+        order, unit = _euler_parameters(fmt)
+        return f"{EULER_FORMAT}:{order}:{unit}"
+    raise ValueError(f"format: expected one of {', '.join(FORMAT_NAMES)}, got {fmt!r}")
 
 
 # ----------------------------------------------------------------------------- OpenCV YAML
@@ -1274,7 +1394,7 @@ def infer_format(path) -> str:
     fmt = _EXTENSIONS.get(Path(path).suffix.lower())
     if fmt is None:
         raise ValueError(f"{path}: cannot infer the format from the extension "
-                         f"{Path(path).suffix!r}; pass one of {', '.join(FORMATS)} "
+                         f"{Path(path).suffix!r}; pass one of {', '.join(FORMAT_NAMES)} "
                          "(--format)")
     return fmt
 
@@ -1285,15 +1405,20 @@ def parse_poses(text, fmt: str, stream: str, source: str = "<text>",
                 progress: bool | None = None) -> PoseStream:
     """Parses the text (str or UTF-8 bytes) of a pose file into the canonical stream: X_BE for
     ``stream="robot"``, X_CT for ``stream="camera"`` (camera-in-target files are inverted)."""
-    if fmt not in FORMATS:
-        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    fmt = check_format(fmt)
     if stream not in STREAMS:
         raise ValueError(f"stream: expected one of {STREAMS}, got {stream!r}")
     if fmt == "opencv-yaml":
         return parse_opencv_yaml(text, stream, source, camera_in_target, translation_scale,
                                  max_translation, time_scale)
-    parse = parse_tum if fmt == "tum" else parse_csv_matrix
-    result = parse(text, source, translation_scale, max_translation, time_scale, progress)
+    if fmt.startswith(EULER_FORMAT + ":"):
+        _, order, unit = fmt.split(":")
+        result = parse_csv_euler(text, order, unit, source, translation_scale, max_translation,
+                                 time_scale, progress)
+    else:
+        parse = {"tum": parse_tum, "csv-matrix": parse_csv_matrix,
+                 "csv-rotvec": parse_csv_rotvec}[fmt]
+        result = parse(text, source, translation_scale, max_translation, time_scale, progress)
     return result.inverted() if stream == "camera" and camera_in_target else result
 
 
@@ -1307,7 +1432,8 @@ def read_poses(path, stream: str, fmt: str | None = None, camera_in_target: bool
         path: the file (or a pipe, FIFO, ``/dev/fd/N``: read once, up to ``max_bytes``); or an
             ``InputFile`` already read by ``read_input``.
         stream: "robot" or "camera".
-        fmt: one of ``FORMATS``; None infers it from the extension (``infer_format``).
+        fmt: one of ``FORMATS`` or ``csv-euler:ORDER:UNIT``; None infers it from the extension
+            (``infer_format``).
         camera_in_target: the camera file holds X_TC (camera in target); inverted on reading.
         translation_scale: factor applied to translations (0.001 for a file in millimetres).
         max_translation: plausibility bound on translation lengths (metres); None disables it.
@@ -1323,9 +1449,7 @@ def read_poses(path, stream: str, fmt: str | None = None, camera_in_target: bool
             docstring.
     """
     raw = path if isinstance(path, InputFile) else None
-    fmt = infer_format(raw.source if raw else path) if fmt is None else fmt
-    if fmt not in FORMATS:
-        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    fmt = infer_format(raw.source if raw else path) if fmt is None else check_format(fmt)
     if stream not in STREAMS:
         raise ValueError(f"stream: expected one of {STREAMS}, got {stream!r}")
     if raw is None:

@@ -20,6 +20,19 @@ def test_simulate_writes_its_artefacts_and_a_quiet_summary(tmp_path, capfd):
                      "summary.json"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["two_motion_solution_found"] and summary["estimator"] == "TargetFilter"
+    # The estimates themselves: the final X_EC with its covariance, the two-motion X_EC; their
+    # errors against the truth are the ones the summary states.
+    from handeye_drake import rotation_error_deg
+    X, X0, X_true = (np.array(summary[k]) for k in ("final_X_EC", "two_motion_X_EC",
+                                                    "true_X_EC"))
+    assert abs(rotation_error_deg(X_true, X) - summary["final_rotation_error_deg"]) < 1e-6
+    assert abs(rotation_error_deg(X_true, X0) - summary["two_motion_rotation_error_deg"]) < 1e-6
+    C = np.array(summary["final_X_EC_covariance"])
+    assert C.shape == (6, 6) and np.allclose(C, C.T) and np.all(np.linalg.eigvalsh(C) > 0)
+    np.testing.assert_allclose(np.degrees(np.sqrt(np.diag(C)[:3])),
+                               summary["final_X_EC_rotation_std_deg"], rtol=1e-9)
+    np.testing.assert_allclose(np.sqrt(np.diag(C)[3:]), summary["final_X_EC_translation_std"],
+                               rtol=1e-9)
     assert "two-motion estimate (daniilidis): rotation" in stdout
     assert "final on-line estimate" in stdout and "WARNING" not in stdout
     # A batch run has no live Meshcat server to advertise.

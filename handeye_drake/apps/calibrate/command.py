@@ -15,7 +15,7 @@ import argparse
 import math
 
 from ...estimation.solvers import METHODS
-from ...recorded.formats import FORMATS, MAX_TRANSLATION
+from ...recorded.formats import FORMAT_NAMES, MAX_TRANSLATION
 from ..argtypes import positive_float
 from ..outputs import prepare_output_dir
 from ...calibration.api import DEFAULT_ROBOT_ACCURACY, CalibrationOptions, read_inputs, solve
@@ -71,6 +71,14 @@ def _max_images_arg(text: str):
     return v or None
 
 
+def _format_arg(text: str):
+    from ...recorded.formats import check_format
+    try:
+        return check_format(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def _formats_arg(text: str):
     from ...recorded.exports import parse_formats
     try:
@@ -96,9 +104,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="images of the target: files, directories or globs, paired in natural "
                           "file-name order with the poses of --robot (one each)")
     fmt = p.add_argument_group("reading")
-    fmt.add_argument("--format", choices=FORMATS, default=None,
-                     help="pose file format (default: from the extension: .tum/.txt, .csv, "
-                          ".yaml/.yml)")
+    fmt.add_argument("--format", type=_format_arg, default=None, metavar="FORMAT",
+                     help=f"pose file format: {', '.join(FORMAT_NAMES)} (default: from the "
+                          "extension: .tum/.txt, .csv, .yaml/.yml). csv-rotvec: x y z rx ry rz "
+                          "(UR: rotation vector, rad); csv-euler:ORDER:UNIT: x y z a1 a2 a3, "
+                          "turns a1 a2 a3 about the axes of ORDER in turn — lowercase extrinsic "
+                          "(fixed axes), UPPERCASE intrinsic (turning axes), as scipy's "
+                          "Rotation.from_euler; UNIT deg|rad. KUKA X Y Z A B C: csv-euler:ZYX:deg, "
+                          "Fanuc X Y Z W P R: csv-euler:xyz:deg (both mm: --translation-scale "
+                          "0.001). Both take an optional leading timestamp")
+    for which in ("robot", "camera"):
+        fmt.add_argument(f"--{which}-format", type=_format_arg, default=None, metavar="FORMAT",
+                         help=f"the {which} file's format, overriding --format (e.g. a KUKA "
+                         "robot file with a TUM camera file)")
     fmt.add_argument("--camera-pose-is-camera-in-target", action="store_true",
                      help="the camera poses are X_TC (camera in target), not X_CT")
     for which in ("robot", "camera"):
@@ -264,7 +282,8 @@ def run_calibrate_command(args) -> int:
         max_images=args.max_images, robot_translation_scale=robot_scale,
         camera_translation_scale=camera_scale, max_translation=args.max_translation,
         time_scale=args.time_scale, robot_quaternion_order=args.robot_quaternion_order,
-        camera_quaternion_order=args.camera_quaternion_order, drawings_dir=out)
+        camera_quaternion_order=args.camera_quaternion_order,
+        robot_format=args.robot_format, camera_format=args.camera_format, drawings_dir=out)
     result = solve(streams, options_from_args(args))
     intrinsics_used = result.intrinsics
     written = [write_json(result, out.path("calibration.json"))]
@@ -284,6 +303,8 @@ def run_calibrate_command(args) -> int:
             if p.suffix == ".sh":
                 p.chmod(0o755)
             written.append(p)
+    from .report_html import write_report_html
+    written.insert(1, write_report_html(result, streams, out))  # listed first: read it first
     out.finish(written)
     if streams.images:
         print(_image_table(streams))
