@@ -241,7 +241,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--robot-accuracy", default="0.03,0.3", metavar="DEG,MM",
                    help="the robot's pose accuracy added to the σ (default 0.03,0.3)")
     p.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
-                   type=lambda s: s.replace("_", "-"))
+                   type=lambda s: s.replace("_", "-"),
+                   help="eye-in-hand (camera on the flange) or eye-to-hand, as for calibrate")
     g = p.add_argument_group("next poses")
     g.add_argument("--candidates", metavar="FILE", help="poses X_BE the robot can reach (any "
                    "pose format): the next is the D-optimal best of the unvisited ones")

@@ -104,7 +104,7 @@ class CalibrationOptions:
             robot_accuracy=self.robot_accuracy, quaternion_streams=streams.quaternion_streams,
             camera_resampler=None if corner_level else streams.camera_resampler,
             online=self.online, online_step_deg=self.online_step_deg,
-            camera_from_images=bool(streams.images))
+            camera_from_images=bool(streams.images) or streams.roles_known)
 
 
 def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()

@@ -38,6 +38,9 @@ class Streams:
     detections: list = field(default_factory=list)
     #: "given" (--intrinsics, CameraInfo) or "self-calibrated" (from the same images).
     intrinsics_source: str = "given"
+    #: Which stream is the robot's and which the camera's is known, not read from two files
+    #: that may have been given the wrong way round (a live session's typed samples, images).
+    roles_known: bool = False
 
 
 def _reorder(stream: PoseStream, order: str, option: str, fmt: str) -> PoseStream:
@@ -426,7 +429,7 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
                          "intrinsics": str(intrinsics_spec) if intrinsics_spec else
                          "calibrated from the images", "intrinsics_note": intrinsics_note},
               "robot": {"path": str(robot_path), "sha256": robot.sha256, "samples": len(robot),
-                        "format": robot_fmt}}
+                        "format": robot_fmt, "translation_scale": robot_translation_scale}}
     resampler = None if intrinsics_std is None else _resampler([d for _, d in found], intrinsics,
                                                                intrinsics_std)
     return Streams(robot_kept, camera, inputs, ("robot",) if robot_fmt == "tum" else (),

@@ -288,7 +288,7 @@ class CalibrationSession:
             times = np.array(self.stamps)
         streams = Streams(robot=pose_stream(np.array(self.X_BE), times, "session robot"),
                           camera=pose_stream(np.array(self.X_CT), times, "session camera"),
-                          inputs={"session": {"samples": n}})
+                          inputs={"session": {"samples": n}}, roles_known=True)
         options = self.options
         if times is None and options.time_offset_s is None:
             options = dataclasses.replace(options, time_offset_s=0.0)
