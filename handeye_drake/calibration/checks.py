@@ -60,6 +60,8 @@ OUTLIER_FRACTIONS = (0.1, 0.3)
 #: The camera translations' scale (``pipeline.camera_scale_test``) this many σ from 1: FAIL;
 #: beyond ``SCALE_WARN_SIGMA``: WARN.
 SCALE_FAIL_SIGMA = 5.0
+#: ... and off by more than this fraction (0.2 %: 1 mm at 0.5 m).
+SCALE_MIN_ERROR = 0.002
 SCALE_WARN_SIGMA = 3.0
 #: Fewest samples for a calibration worth trusting (WARN below).
 MIN_SAMPLES = 8
@@ -448,6 +450,10 @@ def verdict(result) -> Verdict:
         hints = [h for h in hints if h.code != "camera_scale"]
         level = "FAIL" if scale["sigmas"] > SCALE_FAIL_SIGMA else (
             "WARN" if scale["sigmas"] > SCALE_WARN_SIGMA else "")
+        if abs(scale["factor"] - 1.0) <= SCALE_MIN_ERROR:
+            # Significant but immaterial (a long recording resolves 0.04 %): a print's and a
+            # robot's own scale are not better than this.
+            level = ""
         if level and not better:
             f = scale["factor"]
             reasons.append(Reason(
