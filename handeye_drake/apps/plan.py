@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .argtypes import int_up_to
 from .outputs import prepare_output_dir
 from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
                                         observability_report, parse_fixed, pose_residuals,
@@ -311,8 +312,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--around: largest rotation from POSE (default 30)")
     p.add_argument("--max-distance", type=float, default=0.1, metavar="METRES",
                    help="--around: largest flange displacement from POSE (default 0.1)")
-    p.add_argument("--num-candidates", type=int, default=500, metavar="N",
-                   help="--around: candidates to sample (default 500)")
+    p.add_argument("--num-candidates", type=int_up_to(100_000, "each costs about 0.5 ms"),
+                   default=500, metavar="N",
+                   help="--around: candidates to sample (default 500, at most 100 000)")
     p.add_argument("--seed", type=int, default=0, help="--around: random seed (default 0)")
     p.add_argument("--hand-eye", metavar="POSE",
                    help="rough X_EC (X_BC for eye-to-hand), x,y,z,qx,qy,qz,qw; needed without "
