@@ -22,6 +22,7 @@ what they touch. The offset search compares motions starting at no more than
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -220,6 +221,52 @@ def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, step,
+                 units: str) -> TimeOffsetEstimate:
+    """``estimate_time_offset`` when ±R leaves fewer than half of the camera samples inside the
+    robot's span for every offset: each grid offset is scored on the camera samples its own
+    robot instants cover (at least half of those covered at offset 0, so offset 0 always
+    counts), the trimmed mean of |θ_A − θ_B| over motions of the smallest lag; the usual search
+    then refines ±4 grid steps about the best one."""
+    t0, t1 = interp.span
+    tc = camera.timestamps
+    need = max(8, int(np.count_nonzero((tc >= t0) & (tc <= t1))) // 2)
+    if step is None:
+        periods = [_median_period(robot.timestamps), _median_period(tc)]
+        step = min(p for p in periods if math.isfinite(p)) / 4.0
+    step = max(float(step), 2.0 * R / 2000.0)
+    grid = np.linspace(-R, R, 2 * int(math.ceil(R / step)) + 1)
+    R_CT = camera.poses[:, :3, :3]
+    cost = np.full(len(grid), np.inf)
+    for g, d in enumerate(grid):
+        k = np.flatnonzero((tc - d >= t0) & (tc - d <= t1))
+        if len(k) < need:
+            continue
+        if len(k) > MAX_OFFSET_ANCHORS:
+            k = k[np.unique(np.linspace(0, len(k) - 1, MAX_OFFSET_ANCHORS).round().astype(int))]
+        R_BE = interp.rotations(tc[k] - d)
+        r = np.concatenate([np.abs(_angles(R_CT[k[:-L]], R_CT[k[L:]])
+                                   - _angles(R_BE[:-L], R_BE[L:]))
+                            for L in sorted({int(v) for v in lags}) if 0 < L < len(k)])
+        m = max(1, int(0.8 * len(r)))
+        cost[g] = float(np.partition(r, m - 1)[:m].mean())
+    best = float(grid[int(np.argmin(cost))])
+    if abs(best) >= R - step:
+        raise ValueError(
+            f"time offset estimation: the best offset lies on the search bound ({best:+.4g} s "
+            f"of ±{R:g} s): the offset is larger than the range, or the streams do not match — "
+            "widen --time-offset-range or check the timestamps" + units)
+    shifted = dataclasses.replace(camera, timestamps=tc - best)
+    # The widest range about the best offset that keeps half of the samples for every offset
+    # (the ordinary search's condition), at least 4 grid steps.
+    margin = np.minimum(tc - best - t0, t1 - (tc - best))
+    keeps = float(np.sort(margin)[::-1][need - 1])
+    near = estimate_time_offset(robot, shifted, min(R, max(keeps, 4 * (grid[1] - grid[0]))),
+                                lags, step)
+    return TimeOffsetEstimate(best + near.offset, R, near.grid + best, near.cost,
+                              near.num_motions, near.residual_rms_deg)
+
+
 def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: float = 0.5,
                          lags=(1, 2, 4, 8), step: float | None = None) -> TimeOffsetEstimate:
     """Estimates the constant offset (camera stamp − robot time) in [−search_range, search_range].
@@ -266,6 +313,11 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     t0, t1 = interp.span
     tc = camera.timestamps
     ok = np.flatnonzero((tc - R >= t0) & (tc + R <= t1))
+    inside = int(np.count_nonzero((tc >= t0) & (tc <= t1)))
+    if len(ok) < max(4, inside // 2) and inside >= 8:
+        # A range wide for the recording's length: every candidate offset on its own overlap
+        # first, then the usual search in a narrow range about the best one.
+        return _wide_search(robot, camera, interp, R, lags, step, units)
     if len(ok) < 4:
         raise UnobservableTimeOffset(
             f"time offset estimation: only {len(ok)} camera samples of {camera.source} stay "
