@@ -79,14 +79,17 @@ def _units_hint(robot: PoseStream, camera: PoseStream) -> str:
     """Why the clocks of two streams may not match: a time unit other than seconds in one of
     them (a slow clock, or spans far apart in length), for messages; "" when nothing shows."""
     hints = []
-    for s in (robot, camera):
+    r = float(robot.timestamps[-1] - robot.timestamps[0]) if len(robot) > 1 else 0.0
+    c = float(camera.timestamps[-1] - camera.timestamps[0]) if len(camera) > 1 else 0.0
+    alike = r > 0 and c > 0 and 1 / 30 < c / r < 30
+    for s, other in ((robot, camera), (camera, robot)):
         h = slow_clock_hint(s.timestamps)
-        if h:
+        # A sparse stream (one image every 1.2 s) beside a fast one over the same span is in
+        # the same unit, seconds: in milliseconds it would span 1000× the other's time.
+        if h and not (alike and slow_clock_hint(other.timestamps) is None):
             hints.append(f"{s.source}: {h}")
     if not hints and len(robot) > 1 and len(camera) > 1:
-        r = float(robot.timestamps[-1] - robot.timestamps[0])
-        c = float(camera.timestamps[-1] - camera.timestamps[0])
-        if r > 0 and c > 0 and not 1 / 30 < c / r < 30:
+        if r > 0 and c > 0 and not alike:
             big, small = (camera, robot) if c > r else (robot, camera)
             hints.append(f"{big.source} spans {max(c, r) / min(c, r):.3g}× the time of "
                          f"{small.source}: do both files use the same time unit (seconds; "

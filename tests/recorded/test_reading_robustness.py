@@ -415,3 +415,19 @@ def test_many_poses_among_blank_lines_and_comments_read_exactly(seed):
     assert len(stream) == n and list(stream.lines) == numbers
     assert np.array_equal(stream.poses, plain.poses)
     assert np.array_equal(stream.timestamps, plain.timestamps)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_sparse_stream_in_seconds_gets_no_unit_hint(seed):
+    # one camera pose every 1–3 s beside a 50 Hz robot over the same span: both in seconds
+    from handeye_drake.calibration.align import _units_hint
+    rng = np.random.default_rng(seed)
+    period = float(rng.uniform(1.0, 3.0))
+    t_r = np.arange(0, 60, 0.02)
+    t_c = np.arange(0.5, 59, period)
+    robot = pose_stream(np.tile(np.eye(4), (len(t_r), 1, 1)), t_r, "robot")
+    camera = pose_stream(np.tile(np.eye(4), (len(t_c), 1, 1)), t_c, "camera")
+    assert _units_hint(robot, camera) == ""
+    # the same camera stamped in milliseconds still gets its hint
+    hint = _units_hint(robot, pose_stream(camera.poses, 1000 * t_c, "camera"))
+    assert hint.startswith("camera: its median sampling period is") and "--time-scale" in hint
