@@ -453,3 +453,29 @@ def test_a_wide_time_offset_range_on_the_good_example_is_ok(tmp_path, capsys):
     doc = json.loads((out / "calibration.json").read_text())
     assert doc["verdict"]["status"] == "OK"
     assert abs(doc["time_offset"]["value_s"] - 0.02) < 0.002
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_eye_to_hand_with_inverted_robot_poses_is_named(seed):
+    # once "no usual mistake explains them": the other mode fits, but with the camera's distance
+    # from the base as an eye-in-hand distance
+    rng = np.random.default_rng(seed)
+    X_BC = make_transform(rotation_exp(rng.normal(size=3)),
+                          [rng.uniform(0.6, 1.2), rng.uniform(-0.4, 0.4), rng.uniform(0.4, 0.9)])
+    X_ET = make_transform(rotation_exp(0.3 * rng.normal(size=3)), 0.05 * rng.normal(size=3))
+    X_BE = [make_transform(rotation_exp(0.5 * rng.normal(size=3)),
+                           [0.5, 0.0, 0.4] + 0.1 * rng.normal(size=3)) for _ in range(40)]
+    X_CT = [make_transform(rotation_exp(np.radians(0.05) * rng.normal(size=3)),
+                           0.0005 * rng.normal(size=3)) @ inverse(X_BC) @ X @ X_ET for X in X_BE]
+    t = np.arange(40, dtype=float)
+    res = calibrate_streams(pose_stream([inverse(X) for X in X_BE], t, "robot"),
+                            pose_stream(X_CT, t, "camera"), mode="eye_to_hand", time_offset=0.0)
+    assert res.verdict.status == "FAIL"
+    first = res.verdict.reasons[0]
+    assert first.code == "robot_inverted", res.verdict.reasons
+    assert "the robot poses are inverted" in first.message
+    assert not any("no usual mistake" in r.message for r in res.verdict.reasons)
+    good = calibrate_streams(pose_stream(X_BE, t, "robot"), pose_stream(X_CT, t, "camera"),
+                             mode="eye_to_hand", time_offset=0.0)
+    # (the same stamps in both files leave the swap undecided: a WARN of its own)
+    assert [r.code for r in good.verdict.reasons] in ([], ["swap_ambiguous"]), good.verdict
