@@ -41,6 +41,9 @@ MAX_SEED = 2**32 - 1
 #: Largest accepted duration (s) and smallest time step: bounds that keep a run finite.
 MAX_DURATION = 3600.0
 MIN_TIME_STEP = 1e-5
+#: Largest accepted camera rate (frames per second): real hand-eye cameras run at 5–120; past
+#: this the run's frames (kept for the calibrator) grow without bound.
+MAX_FPS = 1000.0
 
 
 def _transform(xyz, rpy_deg, base_frame=None) -> Transform:
@@ -312,6 +315,9 @@ class Scenario:
             raise ValueError(f"arm.driver.velocity_scale: must be in (0, 1], got {v!r}")
         s = self.camera.sensor
         check_positive(s.fps, "camera.sensor.fps")
+        if s.fps > MAX_FPS:
+            raise ValueError(f"camera.sensor.fps: {s.fps:g} frames per second is beyond the "
+                             f"{MAX_FPS:g} a simulated camera may run at (cameras run at 5–120)")
         if s.width < 1 or s.height < 1:
             raise ValueError(f"camera.sensor: image size must be positive, got {s.width}×"
                              f"{s.height}")

@@ -83,6 +83,11 @@ camera:
     ("duration: 1e9\n", "duration: 1e\\+09 s is longer than"),
     ("plant_config:\n  time_step: 1e-300\n", "plant_config.time_step: 1e-300 s is below"),
     ("camera:\n  sensor:\n    fps: -30\n", "camera.sensor.fps"),
+    ("camera:\n  sensor:\n    fps: 1e9\n", r"^scenario: camera.sensor.fps: 1e\+09 frames per second is "
+     r"beyond the 1000 a simulated camera may run at \(cameras run at 5–120\)$"),
+    ("camera:\n  sensor:\n    fps: 1e5\n", r"^scenario: camera.sensor.fps: 100000 frames per second is "
+     "beyond the 1000"),
+    ("camera:\n  sensor:\n    fps: 1000.5\n", "^scenario: camera.sensor.fps: 1000.5 frames per second"),
     ("camera:\n  axes_angle_deg: 0\n", "camera.axes_angle_deg"),
     ("servo:\n  self_calibration: []\n", "at least 2 motions"),
     ("X_EC_guess:\n  rotation: !Uniform {}\n", "X_EC_guess: expected a deterministic pose"),

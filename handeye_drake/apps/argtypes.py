@@ -40,3 +40,16 @@ def non_negative_float(text: str) -> float:
     if not (math.isfinite(v) and v >= 0):
         raise argparse.ArgumentTypeError(f"expected a number ≥ 0, got {text!r}")
     return v
+
+
+def int_up_to(high: int, why: str):
+    """An argparse type: a positive integer ≤ ``high`` (a bound on the work an option asks for,
+    said in the message with ``why``), e.g. ``int_up_to(100_000, "about 0.5 ms each")``."""
+    def parse(text: str) -> int:
+        v = positive_int(text)
+        if v > high:
+            bound = f"{high:_}".replace("_", " ")
+            raise argparse.ArgumentTypeError(f"expected at most {bound} ({why}), got {text!r}")
+        return v
+    parse.__name__ = f"positive integer ≤ {high}"
+    return parse

@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from .argtypes import int_up_to
 from .outputs import prepare_output_dir
 from .pose_args import _numbers, parse_intrinsics, parse_point, parse_pose  # noqa: F401
 from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
@@ -273,9 +274,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--around: largest rotation from POSE (default 30)")
     p.add_argument("--max-distance", type=float, default=0.1, metavar="METRES",
                    help="--around: largest flange displacement from POSE (default 0.1)")
-    p.add_argument("--num-candidates", type=int, default=None, metavar="N",
-                   help="--around: candidates to sample (default 500); --feasible: verified "
-                        "candidates to find (default 60)")
+    p.add_argument("--num-candidates", type=int_up_to(100_000, "each costs about 0.5 ms"),
+                   default=None, metavar="N",
+                   help="--around: candidates to sample (default 500, at most 100 000); "
+                        "--feasible: verified candidates to find (default 60)")
     p.add_argument("--seed", type=int, default=0, help="--around: random seed (default 0)")
     p.add_argument("--hand-eye", metavar="POSE",
                    help="rough X_EC (X_BC for eye-to-hand), x,y,z,qx,qy,qz,qw; needed without "

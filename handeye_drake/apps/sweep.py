@@ -178,16 +178,27 @@ def build_scenario(base_text: str, overrides, seed: int | None = None):
             from None
 
 
+#: The most runs one sweep takes (seeds × settings): a closed-loop run costs about a second, so
+#: this is already more than a day on one core; a larger sweep is refused before anything runs.
+MAX_RUNS = 100_000
+
+
 def parse_seeds(text: str) -> list[int]:
-    """``START:STOP`` (STOP excluded), ``A,B,C`` or ``N``."""
+    """``START:STOP`` (STOP excluded), ``A,B,C`` or ``N``; at most ``MAX_RUNS`` seeds (counted
+    before the list is made)."""
     try:
         if ":" in text:
             start, stop = (int(v) for v in text.split(":", 1))
+            if stop - start > MAX_RUNS:
+                raise OverflowError
             seeds = list(range(start, stop))
         else:
             seeds = [int(v) for v in text.split(",")]
     except ValueError:
         raise ValueError(f"--seeds {text}: expected START:STOP, A,B,C or N") from None
+    except OverflowError:
+        raise ValueError(f"--seeds {text}: {stop - start} seeds; a sweep takes at most "
+                         f"{MAX_RUNS} runs (about a second each)") from None
     if not seeds or min(seeds) < 0 or max(seeds) > 2**32 - 1:
         raise ValueError(f"--seeds {text}: needs at least one seed in [0, 2^32 − 1]")
     if len(set(seeds)) != len(seeds):
@@ -214,6 +225,11 @@ class SweepSpec:
         if len(set(paths)) != len(paths):
             raise ValueError(f"--set: a path given twice ({', '.join(paths)})")
         spec = cls(base, sets, parse_seeds(seeds) if isinstance(seeds, str) else list(seeds))
+        runs = math.prod(len(values) for _, values in sets) * len(spec.seeds)
+        if runs > MAX_RUNS:
+            raise ValueError(f"--set, --seeds: {runs} runs ({' × '.join(str(len(v)) for _, v in sets)}"
+                             f" settings × {len(spec.seeds)} seeds); a sweep takes at most "
+                             f"{MAX_RUNS} runs (about a second each)")
         for setting in spec.settings():
             build_scenario(spec.base_text, setting)  # every value checked before any run
         return spec

@@ -22,6 +22,7 @@ what they touch. The offset search compares motions starting at no more than
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,14 +79,17 @@ def _units_hint(robot: PoseStream, camera: PoseStream) -> str:
     """Why the clocks of two streams may not match: a time unit other than seconds in one of
     them (a slow clock, or spans far apart in length), for messages; "" when nothing shows."""
     hints = []
-    for s in (robot, camera):
+    r = float(robot.timestamps[-1] - robot.timestamps[0]) if len(robot) > 1 else 0.0
+    c = float(camera.timestamps[-1] - camera.timestamps[0]) if len(camera) > 1 else 0.0
+    alike = r > 0 and c > 0 and 1 / 30 < c / r < 30
+    for s, other in ((robot, camera), (camera, robot)):
         h = slow_clock_hint(s.timestamps)
-        if h:
+        # A sparse stream (one image every 1.2 s) beside a fast one over the same span is in
+        # the same unit, seconds: in milliseconds it would span 1000× the other's time.
+        if h and not (alike and slow_clock_hint(other.timestamps) is None):
             hints.append(f"{s.source}: {h}")
     if not hints and len(robot) > 1 and len(camera) > 1:
-        r = float(robot.timestamps[-1] - robot.timestamps[0])
-        c = float(camera.timestamps[-1] - camera.timestamps[0])
-        if r > 0 and c > 0 and not 1 / 30 < c / r < 30:
+        if r > 0 and c > 0 and not alike:
             big, small = (camera, robot) if c > r else (robot, camera)
             hints.append(f"{big.source} spans {max(c, r) / min(c, r):.3g}× the time of "
                          f"{small.source}: do both files use the same time unit (seconds; "
@@ -220,6 +224,52 @@ def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, step,
+                 units: str) -> TimeOffsetEstimate:
+    """``estimate_time_offset`` when ±R leaves fewer than half of the camera samples inside the
+    robot's span for every offset: each grid offset is scored on the camera samples its own
+    robot instants cover (at least half of those covered at offset 0, so offset 0 always
+    counts), the trimmed mean of |θ_A − θ_B| over motions of the smallest lag; the usual search
+    then refines ±4 grid steps about the best one."""
+    t0, t1 = interp.span
+    tc = camera.timestamps
+    need = max(8, int(np.count_nonzero((tc >= t0) & (tc <= t1))) // 2)
+    if step is None:
+        periods = [_median_period(robot.timestamps), _median_period(tc)]
+        step = min(p for p in periods if math.isfinite(p)) / 4.0
+    step = max(float(step), 2.0 * R / 2000.0)
+    grid = np.linspace(-R, R, 2 * int(math.ceil(R / step)) + 1)
+    R_CT = camera.poses[:, :3, :3]
+    cost = np.full(len(grid), np.inf)
+    for g, d in enumerate(grid):
+        k = np.flatnonzero((tc - d >= t0) & (tc - d <= t1))
+        if len(k) < need:
+            continue
+        if len(k) > MAX_OFFSET_ANCHORS:
+            k = k[np.unique(np.linspace(0, len(k) - 1, MAX_OFFSET_ANCHORS).round().astype(int))]
+        R_BE = interp.rotations(tc[k] - d)
+        r = np.concatenate([np.abs(_angles(R_CT[k[:-L]], R_CT[k[L:]])
+                                   - _angles(R_BE[:-L], R_BE[L:]))
+                            for L in sorted({int(v) for v in lags}) if 0 < L < len(k)])
+        m = max(1, int(0.8 * len(r)))
+        cost[g] = float(np.partition(r, m - 1)[:m].mean())
+    best = float(grid[int(np.argmin(cost))])
+    if abs(best) >= R - step:
+        raise ValueError(
+            f"time offset estimation: the best offset lies on the search bound ({best:+.4g} s "
+            f"of ±{R:g} s): the offset is larger than the range, or the streams do not match — "
+            "widen --time-offset-range or check the timestamps" + units)
+    shifted = dataclasses.replace(camera, timestamps=tc - best)
+    # The widest range about the best offset that keeps half of the samples for every offset
+    # (the ordinary search's condition), at least 4 grid steps.
+    margin = np.minimum(tc - best - t0, t1 - (tc - best))
+    keeps = float(np.sort(margin)[::-1][need - 1])
+    near = estimate_time_offset(robot, shifted, min(R, max(keeps, 4 * (grid[1] - grid[0]))),
+                                lags, step)
+    return TimeOffsetEstimate(best + near.offset, R, near.grid + best, near.cost,
+                              near.num_motions, near.residual_rms_deg)
+
+
 def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: float = 0.5,
                          lags=(1, 2, 4, 8), step: float | None = None) -> TimeOffsetEstimate:
     """Estimates the constant offset (camera stamp − robot time) in [−search_range, search_range].
@@ -266,6 +316,11 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     t0, t1 = interp.span
     tc = camera.timestamps
     ok = np.flatnonzero((tc - R >= t0) & (tc + R <= t1))
+    inside = int(np.count_nonzero((tc >= t0) & (tc <= t1)))
+    if len(ok) < max(4, inside // 2) and inside >= 8:
+        # A range wide for the recording's length: every candidate offset on its own overlap
+        # first, then the usual search in a narrow range about the best one.
+        return _wide_search(robot, camera, interp, R, lags, step, units)
     if len(ok) < 4:
         raise UnobservableTimeOffset(
             f"time offset estimation: only {len(ok)} camera samples of {camera.source} stay "

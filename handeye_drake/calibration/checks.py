@@ -196,6 +196,14 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
         "camera poses are (X_TC given for X_CT)",
         f"--mode {other.replace('_', '-')} if that is the set-up, else invert the camera stream "
         "(add or drop --camera-pose-is-camera-in-target)", lambda r, c: (r, c, other)))
+    if reading.mode == "eye_to_hand":
+        # Eye-in-hand data with inverted robot poses fit the other mode with a plausible
+        # distance; eye-to-hand ones fit eye-in-hand with the camera's distance from the base as
+        # "hand-eye" distance, which that mode's limit rejects: the inversion is tried as such.
+        alts.append(Alternative(
+            "robot_inverted", "the robot poses are inverted (X_EB, the base in the end-effector "
+            "frame, given for X_BE)", "invert the robot poses: the file must hold X_BE "
+            "(end-effector in base)", lambda r, c: (r.inverted(), c, None)))
     for which in ("robot", "camera"):
         alts.append(Alternative(
             f"{which}_millimetres", f"the {which} file's translations are in millimetres",

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import glob
+import os
 import re
+import stat
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -120,12 +122,48 @@ def _natural_key(path: Path):
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
 
 
+def _file_kind(path: Path) -> str:
+    """The empty string for a regular file (symbolic links followed), else what it is ("a FIFO",
+    "a symbolic link loop", …) — found with ``stat``, never by opening it (a FIFO would block
+    the open, a device could stream forever)."""
+    import errno
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as e:
+        return ("a symbolic link loop" if e.errno == errno.ELOOP else
+                "a broken symbolic link" if e.errno == errno.ENOENT and os.path.islink(path)
+                else f"not readable ({e.strerror or e})")
+    if stat.S_ISREG(mode):
+        return ""
+    return ("a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "a device" if stat.S_ISCHR(mode)
+            or stat.S_ISBLK(mode) else "not a regular file")
+
+
+def _identity(path: Path) -> str:
+    """What makes two names the same file (duplicates once): the resolved path, or the path
+    itself when it cannot be resolved (a symbolic link loop)."""
+    try:
+        return str(path.resolve())
+    except (OSError, RuntimeError):
+        return str(path.absolute())
+
+
 def image_paths(specs) -> list[Path]:
-    """Files, directories (their images) and globs, naturally sorted by file name
-    (img2 before img10); duplicates once. ``specs``: one path or glob, or a list of them."""
+    """Files, directories (their images) and globs, each argument's files naturally sorted by
+    file name (img2 before img10), the arguments in the order given (``dirA dirB``: dirA's
+    images, then dirB's); duplicates once, where first met. ``specs``: one path or glob, or a
+    list of them. Names that are not regular files (a FIFO, a device, a symbolic link loop) are
+    kept in their place, to be skipped with the reason by the reader without being opened."""
+    return [q for group in image_groups(specs) for q in group[1]]
+
+
+def image_groups(specs) -> list[tuple[str, list[Path]]]:
+    """[(argument, its files in natural order)] in the order of the arguments, duplicates of
+    files already listed left out (see ``image_paths``)."""
     if isinstance(specs, (str, Path)):
         specs = [specs]
-    out = []
+    groups, seen = [], set()
     for spec in specs:
         p = Path(spec)
         if p.is_dir():
@@ -133,16 +171,30 @@ def image_paths(specs) -> list[Path]:
             if not found:
                 raise ValueError(f"--images {spec}: the directory holds no image "
                                  f"({', '.join(IMAGE_SUFFIXES)})")
-            out += found
-        elif p.is_file():
-            out.append(p)
+        elif os.path.lexists(p):
+            found = [p]
         else:
-            matches = [Path(m) for m in glob.glob(str(spec)) if Path(m).is_file()]
-            if not matches:
+            found = [Path(m) for m in glob.glob(str(spec)) if not os.path.isdir(m)]
+            if not found:
                 raise ValueError(f"--images {spec}: no such file, directory or matching glob")
-            out += matches
-    unique = {str(q.resolve()): q for q in out}
-    return sorted(unique.values(), key=_natural_key)
+        files = []
+        for q in sorted(found, key=_natural_key):
+            key = _identity(q)
+            if key not in seen:
+                seen.add(key)
+                files.append(q)
+        groups.append((str(spec), files))
+    return groups
+
+
+def pairing_note(groups) -> str:
+    """How the images were paired with the robot poses, for the printout and the JSON."""
+    if len(groups) == 1:
+        return f"images paired with the robot poses in order: {groups[0][0]} in natural " \
+               f"file-name order ({len(groups[0][1])})"
+    parts = ", then ".join(f"{spec} ({len(files)})" for spec, files in groups)
+    return (f"images paired with the robot poses in order: {parts} — each argument's files in "
+            "natural file-name order, the arguments in the order given")
 
 
 @dataclass
@@ -195,6 +247,9 @@ def _for_detection(image: np.ndarray) -> np.ndarray:
 
 def _read_image(path: Path, max_bytes: int = 100_000_000):
     """(image, reason): the image as RGB/grey uint8, or None and why not."""
+    kind = _file_kind(path)
+    if kind:
+        return None, f"{kind}, not a regular file: not opened"
     try:
         if path.stat().st_size > max_bytes:
             return None, f"larger than {max_bytes // 1_000_000} MB"
@@ -393,7 +448,7 @@ def _require_found(records, found, target_spec, what: str):
 def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fmt=None,
                   robot_translation_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
                   drawings_dir=None) -> Streams:
-    """Detects the target in each image and pairs the images, in natural file-name order, with
+    """Detects the target in each image and pairs the images, in ``image_paths`` order, with
     the robot poses in file order (N images ↔ N poses; timestamps are not used for the pairing).
     Images where the target is not found are skipped, with the reason. Without
     ``intrinsics_spec`` the intrinsics are calibrated from the same images first.
@@ -403,13 +458,18 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     """
     from ..vision.targets import parse_target
     target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
-    paths = image_paths(image_specs)
+    groups = image_groups(image_specs)
+    paths = [q for _, files in groups for q in files]
     robot_fmt = fmt or infer_format(robot_path)
     robot = read_poses(robot_path, "robot", robot_fmt, False, robot_translation_scale)
     robot = _reorder(robot, robot_quaternion_order, "--robot-quaternion-order", robot_fmt)
     if len(paths) != len(robot):
-        raise ValueError(f"--images, --robot: {len(paths)} images but {len(robot)} robot poses "
-                         f"in {robot_path}; images pair with poses in order, one each")
+        odd = [f"{q.name} ({_file_kind(q)})" for q in paths if _file_kind(q)]
+        odd_note = (f" ({len(odd)} of them not regular files: {', '.join(odd[:3])}"
+                    f"{', …' if len(odd) > 3 else ''})") if odd else ""
+        raise ValueError(f"--images, --robot: {len(paths)} images{odd_note} but {len(robot)} "
+                         f"robot poses in {robot_path}; images pair with poses in order, one "
+                         "each")
     w, h = _first_size(_file_frames(paths, robot), "--images")
     intrinsics_note, intrinsics_std = "", None
     if intrinsics_spec is not None:
@@ -427,7 +487,8 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
                             tuple(int(robot.lines[k]) for k in keep), robot.sha256)
     inputs = {"images": {"count": len(paths), "detected": len(keep), "target": str(target_spec),
                          "intrinsics": str(intrinsics_spec) if intrinsics_spec else
-                         "calibrated from the images", "intrinsics_note": intrinsics_note},
+                         "calibrated from the images", "intrinsics_note": intrinsics_note,
+                         "pairing": pairing_note(groups)},
               "robot": {"path": str(robot_path), "sha256": robot.sha256, "samples": len(robot),
                         "format": robot_fmt, "translation_scale": robot_translation_scale}}
     resampler = None if intrinsics_std is None else _resampler([d for _, d in found], intrinsics,

@@ -289,8 +289,9 @@ def table(result) -> str:
     lines.append(r.verdict.line())
     for reason in r.verdict.reasons:
         lines.append(f"  {reason.level}: {reason.message}")
-    for w in r.warnings:
-        lines.append(f"  note: {w}")
+    for w in r.warnings:  # a note the verdict already gives as a reason is not said twice
+        if not any(w in reason.message for reason in r.verdict.reasons):
+            lines.append(f"  note: {w}")
     return "\n".join(lines)
 
 

@@ -356,8 +356,10 @@ def read_input(path, max_bytes: int = MAX_FILE_BYTES, progress: bool | None = No
             regular = stat.S_ISREG(st.st_mode)
             if regular and st.st_size > max_bytes:
                 raise _err(source, None, f"file is larger than {_size(max_bytes)}")
-            if regular:  # one read, no copy; a file growing meanwhile still stops at the cap
-                data = f.read(max_bytes + 1)
+            if regular:  # one read of the size it has (no buffer of the cap's size); a file
+                data = f.read(st.st_size + 1)  # growing meanwhile still stops at the cap
+                if len(data) > st.st_size:
+                    data += f.read(max_bytes + 1 - len(data))
                 if len(data) > max_bytes:
                     raise _err(source, None, f"file is larger than {_size(max_bytes)}")
                 bad = _first_bad_byte(data)
@@ -694,6 +696,8 @@ _SPLIT = re.compile(r"[,\s\ufeff]+")  # a BOM (files concatenated) counts as a s
 _COMMENT = re.compile(rb"#[^\n]*")
 _SEPARATORS = bytes.maketrans(b",\t", b"  ")
 _FAST_CHARS = b"0123456789+-.eEnNaAiIfFtTyY \n"  # numbers, nan, inf(inity), separators
+#: Poses the table reader makes room for at first (9 MB); it doubles as the data lines come.
+_FIRST_CAPACITY = 65536
 _BREAK_BYTES = b"\r\x0b\x0c\x1c\x1d\x1e"  # str.splitlines' ASCII line breaks besides \n
 _BREAKS_TO_NL = bytes.maketrans(_BREAK_BYTES, b"\n" * len(_BREAK_BYTES))
 _UNICODE_BREAKS = (b"\xc2\x85", b"\xe2\x80\xa8", b"\xe2\x80\xa9")
@@ -784,7 +788,7 @@ class _Table:
         """numpy parse of a chunk of normalized lines (``\\n`` only): (values, 0-based line
         indices in the chunk), or None when the chunk needs the line-by-line parse."""
         if b"#" in chunk:
-            chunk = _COMMENT.sub(b"", chunk)
+            chunk = _strip_comments(chunk)
         chunk = chunk.translate(_SEPARATORS)
         if chunk.translate(None, _FAST_CHARS):
             return None  # other characters: letters, control bytes, non-ASCII
@@ -809,6 +813,17 @@ class _Table:
         if len(v) != len(starts):
             return None
         return v.reshape(-1, k), data_lines
+
+
+def _strip_comments(chunk: bytes) -> bytes:
+    """``chunk`` without its comments (``#`` to the end of the line), in memory proportional to
+    the chunk whatever the number of comments (``re.sub`` keeps an object per match: 200 MB for
+    a 4 MiB chunk of short comment lines)."""
+    a = np.frombuffer(chunk, dtype=np.uint8)
+    hashes = np.cumsum(a == 35, dtype=np.int32)
+    newline = a == 10
+    at_line_start = np.maximum.accumulate(np.where(newline, hashes, 0))
+    return a[newline | (hashes == at_line_start)].tobytes()
 
 
 def _looks_like_header(table: _Table, content: str) -> bool:
@@ -895,14 +910,20 @@ def _parse_table(text, source: str, kind: str, translation_scale, max_translatio
         max_translation = _finite_positive(max_translation, "max_translation")
     table = _Table(kind, source)
     data = _normalize_breaks(_as_bytes(text, source))
-    capacity = data.count(b"\n") + 1  # ≥ the number of data lines
-    P = np.empty((capacity, 4, 4))  # pages beyond the data lines are never touched
-    t = np.empty(capacity)
+    # At most one pose per line, and a data line holds ≥ 8 (tum) or 16 (csv) numbers with
+    # their separators: the arrays start small and grow by doubling up to that bound, so blank
+    # lines or comments cost nothing (200 MiB of blank lines once asked for 25 GiB).
+    bound = min(data.count(b"\n") + 1, len(data) // (16 if kind == "tum" else 32) + 1)
+    capacity = min(bound, _FIRST_CAPACITY)
+    P, t = np.empty((capacity, 4, 4)), np.empty(capacity)
     lines = np.empty(capacity, dtype=np.int64)
     n = 0
     largest_angle = 0.0
     for v, numbers in _table_chunks(table, data, progress):
         m = len(v)
+        if n + m > capacity:
+            capacity = min(bound, max(n + m, 2 * capacity))
+            P, t, lines = (np.resize(a, (capacity,) + a.shape[1:]) for a in (P, t, lines))
         chunk_lines = LineNumbers(numbers)
         fin = np.isfinite(v).all(axis=1)
         X = P[n:n + m]

@@ -310,7 +310,42 @@ def _validate(target) -> Target:
     else:
         raise ValueError(f"target: expected one of {', '.join(t.__name__ for t in TARGET_TYPES)} "
                          f"or a spec string, got {type(target).__name__}")
+    _check_extent(target)
     return target
+
+
+#: The largest pattern accepted (m, either side): sizes are in metres, and a board larger than
+#: this is a spec written in millimetres (charuco:7x5:40:30:… is 280 m × 200 m), named as such
+#: when read in millimetres it is a board of 2 cm to 10 m.
+MAX_TARGET_EXTENT = 10.0
+
+
+def _scaled(target, factor: float):
+    if isinstance(target, ChessboardTarget):
+        return dataclasses.replace(target, square=target.square * factor)
+    if isinstance(target, CharucoTarget):
+        return dataclasses.replace(target, square=target.square * factor,
+                                   marker=target.marker * factor)
+    return dataclasses.replace(target, size=target.size * factor)
+
+
+def _width_height(target) -> tuple[float, float]:
+    x0, y0, x1, y1 = _extent(target)
+    return x1 - x0, y1 - y0
+
+
+def _check_extent(target) -> None:
+    w, h = _width_height(target)
+    if max(w, h) <= MAX_TARGET_EXTENT:
+        return
+    board = f"{w:.4g} m × {h:.4g} m"
+    in_metres = _scaled(target, 0.001)
+    if 0.02 <= max(_width_height(in_metres)) <= MAX_TARGET_EXTENT:
+        _fail(type(target).__name__,
+              f"the sizes look like millimetres (the pattern would be {board}); sizes are in "
+              f"metres: {format_target(in_metres)}")
+    _fail(type(target).__name__, f"the pattern would be {board}, larger than the "
+                                 f"{MAX_TARGET_EXTENT:g} m a target may be (sizes are in metres)")
 
 
 # --------------------------------------------------------------------------------------------
@@ -527,7 +562,10 @@ def _object_points(target) -> tuple[np.ndarray, np.ndarray]:
 def pattern_extent(target) -> tuple[float, float, float, float]:
     """(x_min, y_min, x_max, y_max) in T (m) of the printed pattern: the outer squares of a
     chessboard, the whole ChArUco board, the black borders of the tags; no white margin."""
-    target = validate_target(target)
+    return _extent(validate_target(target))
+
+
+def _extent(target) -> tuple[float, float, float, float]:
     if isinstance(target, ChessboardTarget):
         s = target.square
         return (-s, -s, target.cols * s, target.rows * s)

@@ -261,3 +261,21 @@ def test_a_target_in_no_image_and_missing_options(recordings, tmp_path, capsys):
                    truth["target"], "--max-images", "2", name="few")
     assert code == 2 and "--max-images: expected 0 (all) or at least 3, got '2'" in \
         capsys.readouterr().err
+
+
+@pytest.mark.parametrize("latency", [0.5, 0.8])
+def test_a_latency_beyond_the_range_is_not_blamed_on_milliseconds(tmp_path, capsys, latency):
+    # images every 1.2 s beside tf at 100 Hz, in seconds, stamped `latency` s late: once hinted
+    # "if the timestamps are in milliseconds (833 Hz)"
+    path = tmp_path / "late.bag"
+    write_example_bag(path, "ros1", latency=latency)
+    argv = ["calibrate", "--bag", str(path), "--robot-frames", "base_link:tool0", "--image-topic",
+            IMAGE_TOPIC, "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--intrinsics",
+            str(IMAGES / "intrinsics.yaml")]
+    assert main(argv + ["--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the best offset lies on the search bound" in err
+    assert "milliseconds" not in err and "--time-scale" not in err
+    assert main(argv + ["--time-offset-range", "1", "--out", str(tmp_path / "b")]) == 0
+    doc = json.loads((tmp_path / "b" / "calibration.json").read_text())
+    assert abs(doc["time_offset"]["value_s"] - latency) < 0.005

@@ -130,3 +130,16 @@ def test_images_with_a_wrong_fix_fail_and_a_right_one_passes(tmp_path, capsys):
     assert "with roll free the data give roll = -2.9" in capsys.readouterr().out
     assert main(args + ["--fix", "roll_deg=-3", "--out", str(tmp_path / "right")]) == 0
     assert "the data determine roll themselves" in capsys.readouterr().out
+
+
+def test_self_calibrated_intrinsics_with_a_fix_say_their_uncertainty_once(tmp_path, capsys):
+    # held components are fitted at pose level, where the camera poses' systematic uncertainty
+    # is a verdict reason: the notes do not repeat it
+    from tests.apps.test_calibrate import IMAGES
+    main(["calibrate", "--images", str(IMAGES), "--robot", str(IMAGES / "robot_poses.tum"),
+          "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--fix", "tz=0.0639",
+          "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert out.count("the camera poses' systematic uncertainty (intrinsics calibrated from the "
+                     "same images) is included in the σ") == 1, out
+    assert "WARN: the camera poses' systematic uncertainty" in out

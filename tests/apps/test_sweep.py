@@ -145,3 +145,24 @@ def test_paths_values_and_seeds():
     for bad in ("", "5:2", "a", "1,1"):
         with pytest.raises(ValueError, match="--seeds"):
             SweepSpec.from_options(None, [], bad)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "0:1000000000000"], "--seeds 0:1000000000000: 1000000000000 seeds; a sweep "
+     "takes at most 100000 runs (about a second each)"),
+    (["--seeds", "7:100008"], "--seeds 7:100008: 100001 seeds; a sweep takes at most 100000 runs"),
+    (["--seeds", "0:1001", "--set", "duration=1,2,3,4,5,6,7,8,9,10", "--set",
+      "camera.sensor.fps=1,2,3,4,5,6,7,8,9,10"],
+     "--set, --seeds: 100100 runs (10 × 10 settings × 1001 seeds); a sweep takes at most 100000"),
+])
+def test_a_sweep_too_large_is_refused_at_once_in_one_line(argv, message, tmp_path, capsys):
+    import tracemalloc
+    tracemalloc.start()
+    try:
+        code = main(["sweep", *argv, "--out", str(tmp_path / "out")])
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert message in err and peak < 50e6 and not (tmp_path / "out").exists()

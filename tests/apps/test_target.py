@@ -51,3 +51,23 @@ def test_refusals_are_one_line(tmp_path, capsys):
     assert main(["target", "apriltag:36h11:0.048:10", "--out", str(other), "--force"]) == 0
     assert (other / "notes.txt").read_text() == "mine" and (other / "target.pdf").exists()
     assert not (tmp_path / "c").exists()
+
+
+def test_a_spec_in_millimetres_is_refused_not_drawn(tmp_path, capsys):
+    # charuco:7x5:40:30 once proposed a 3307323×2362441 image
+    out = tmp_path / "t"
+    assert main(["target", "charuco:7x5:40:30:DICT_5X5_100", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and not out.exists()
+    assert ("the sizes look like millimetres (the pattern would be 280 m × 200 m); sizes are in "
+            "metres: charuco:7x5:0.04:0.03:DICT_5X5_100") in err
+
+
+def test_calibrate_with_a_target_in_millimetres_names_the_units(tmp_path, capsys):
+    from handeye_drake.recorded.example import data_dir
+    images = data_dir() / "example_images"
+    code = main(["calibrate", "--images", str(images), "--robot", str(images / "robot_poses.tum"),
+                 "--target", "charuco:7x5:40:30:DICT_5X5_100", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "translation-scale" not in err
+    assert "sizes are in metres: charuco:7x5:0.04:0.03:DICT_5X5_100" in err

@@ -266,6 +266,16 @@ def test_plan_command_errors_are_one_line(argv, message, tmp_path, capsys):
     assert __import__("re").search(message, err), err
 
 
+@pytest.mark.parametrize("n", ["100000000", "100001"])
+def test_plan_bounds_the_number_of_candidates(n, tmp_path, capsys):
+    code = cli_main(["plan", "--around", "0,0,0.4,1,0,0,0", "--hand-eye", "0,0,0.1,0,0,0,1",
+                     "--target", "0.5,0,0", "--num-candidates", n, "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and err == ("handeye-drake plan: error: argument --num-candidates: expected "
+                                 f"at most 100 000 (each costs about 0.5 ms), got '{n}'\n")
+    assert not (tmp_path / "o").exists()
+
+
 def test_plan_takes_calibrates_intrinsics_and_noise_spelling(tmp_path, capsys):
     """The same vocabulary as calibrate: --intrinsics as an OpenCV YAML file, --noise DEG,MM."""
     from handeye_drake.vision.intrinsics import write_intrinsics_yaml

@@ -373,3 +373,61 @@ def test_reading_twice_the_same_path_is_not_needed(tmp_path):
     robot, camera = read_poses(raw, "robot"), read_poses(raw, "camera")
     assert robot.sha256 == camera.sha256 == hashlib.sha256(p.read_bytes()).hexdigest()
     assert camera.poses[0, 2, 3] == 0.5 and robot.lines == (3,) and camera.lines == (9,)
+
+
+# ------------------------------------------------------------ blank lines and comments: memory
+@pytest.mark.parametrize("line", [b"\n", b"# a comment\n", b" \t\r\n"])
+def test_blank_lines_and_comments_cost_memory_bounded_by_the_file(tmp_path, line):
+    # 200 MiB of blank lines once asked for 25 GiB (room for a pose per line); 16 MiB here
+    import tracemalloc
+    path = tmp_path / "robot.tum"
+    size = 16 << 20
+    path.write_bytes(line * (size // len(line)) + GOOD.encode())
+    tracemalloc.start()
+    try:
+        stream = read_poses(path, "robot", "tum")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert len(stream) == 2 and stream.lines[0] == size // len(line) + 1
+    assert peak < size + 100e6, f"{peak / 1e6:.0f} MB to read {size >> 20} MiB"
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_many_poses_among_blank_lines_and_comments_read_exactly(seed):
+    # more poses than the reader first makes room for (it grows), among generated noise lines
+    rng = np.random.default_rng(seed)
+    n = 70_000 + int(rng.integers(0, 20_000))
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    xyz = rng.uniform(-1, 1, (n, 3))
+    rows = [f"{k * 0.01:.2f} {x:.6f} {y:.6f} {z:.6f} {a:.9f} {b:.9f} {c:.9f} {d:.9f}"
+            for k, ((x, y, z), (a, b, c, d)) in enumerate(zip(xyz, q))]
+    noise = ["", "# comment", "   ", "#"]
+    out, numbers = [], []
+    for row in rows:
+        for _ in range(int(rng.integers(0, 3))):
+            out.append(noise[int(rng.integers(0, len(noise)))])
+        out.append(row + (" # end" if rng.random() < 0.1 else ""))
+        numbers.append(len(out))
+    stream = parse_poses("\n".join(out) + "\n", "tum", "robot")
+    plain = parse_poses("\n".join(rows) + "\n", "tum", "robot")
+    assert len(stream) == n and list(stream.lines) == numbers
+    assert np.array_equal(stream.poses, plain.poses)
+    assert np.array_equal(stream.timestamps, plain.timestamps)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_sparse_stream_in_seconds_gets_no_unit_hint(seed):
+    # one camera pose every 1–3 s beside a 50 Hz robot over the same span: both in seconds
+    from handeye_drake.calibration.align import _units_hint
+    rng = np.random.default_rng(seed)
+    period = float(rng.uniform(1.0, 3.0))
+    t_r = np.arange(0, 60, 0.02)
+    t_c = np.arange(0.5, 59, period)
+    robot = pose_stream(np.tile(np.eye(4), (len(t_r), 1, 1)), t_r, "robot")
+    camera = pose_stream(np.tile(np.eye(4), (len(t_c), 1, 1)), t_c, "camera")
+    assert _units_hint(robot, camera) == ""
+    # the same camera stamped in milliseconds still gets its hint
+    hint = _units_hint(robot, pose_stream(camera.poses, 1000 * t_c, "camera"))
+    assert hint.startswith("camera: its median sampling period is") and "--time-scale" in hint

@@ -208,6 +208,25 @@ def test_time_offset_on_shipped_example():
     assert abs(est.offset - truth["time_offset_s"]) < 0.005
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_a_range_wide_for_the_recording_still_finds_the_offset(seed):
+    # ±R wider than the camera's margin inside the robot's 12 s: the offset once came out of
+    # fewer samples (±8 s on the example: off by 4 ms) or none at all (±10 s: refused)
+    rng = np.random.default_rng(seed)
+    offset, R = float(rng.uniform(-2, 2)), float(rng.uniform(3, 60))
+    robot, camera, _ = synthetic_streams(offset, seed=seed)
+    est = estimate_time_offset(robot, camera, search_range=R)
+    assert abs(est.offset - offset) < 0.005 and est.search_range == R, (offset, R, est.offset)
+
+
+@pytest.mark.parametrize("R", [8.0, 10.0, 30.0])
+def test_a_wide_range_on_the_shipped_example_finds_its_offset(R):
+    truth = json.loads((DATA / "example_truth.json").read_text())
+    est = estimate_time_offset(read_poses(DATA / "example_robot.tum", "robot"),
+                               read_poses(DATA / "example_camera.tum", "camera"), R)
+    assert abs(est.offset - truth["time_offset_s"]) < 0.002, est.offset
+
+
 def test_time_offset_unobservable_without_rotation_speed_changes():
     """A constant rotation speed makes |θ_A| independent of the offset: refused, explained."""
     t = np.arange(0, 10, 0.02)

@@ -277,3 +277,42 @@ def test_vision_modules_do_not_load_drake():
             "import handeye_drake.vision.detection\n"
             "assert not any(m.startswith('pydrake') for m in sys.modules), 'pydrake loaded'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _board_in_mm(rng):
+    """A plausible board (in metres) and its spec written in millimetres."""
+    kind = ["chessboard", "charuco", "apriltag", "aprilgrid"][int(rng.integers(4))]
+    square = float(np.round(rng.uniform(0.01, 0.08), 4))
+    if kind == "chessboard":
+        return f"chessboard:9x6:{square}", f"chessboard:9x6:{square * 1000:g}"
+    if kind == "charuco":
+        marker = float(np.round(0.75 * square, 4))
+        return (f"charuco:7x5:{square}:{marker}:DICT_5X5_100",
+                f"charuco:7x5:{square * 1000:g}:{marker * 1000:g}:DICT_5X5_100")
+    if kind == "apriltag":
+        return f"apriltag:36h11:{square}", f"apriltag:36h11:{square * 1000:g}"
+    return (f"aprilgrid:36h11:6x6:{square}:0.3", f"aprilgrid:36h11:6x6:{square * 1000:g}:0.3")
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_sizes_in_millimetres_are_named_with_the_spec_in_metres(seed):
+    metres, millimetres = _board_in_mm(np.random.default_rng(seed))
+    with pytest.raises(ValueError) as info:
+        parse_target(millimetres)
+    text = str(info.value)
+    assert text.startswith(f"target spec {millimetres!r}") and "\n" not in text
+    assert "the sizes look like millimetres" in text and "translation-scale" not in text
+    suggested = re.search(r"sizes are in metres: (\S+);", text).group(1)
+    got, want = parse_target(suggested), parse_target(metres)
+    assert type(got) is type(want) and all(
+        a == (pytest.approx(b, rel=1e-12) if isinstance(b, float) else b)
+        for a, b in zip(got.__dict__.values(), want.__dict__.values()))
+
+
+def test_a_board_too_large_to_be_millimetres_is_refused_naming_its_size():
+    with pytest.raises(ValueError, match=r"the pattern would be 11.2 m × 8 m, larger than the 10 "
+                                         r"m a target may be \(sizes are in metres\)"):
+        parse_target("charuco:7x5:1.6:1.2:DICT_5X5_100")
+    with pytest.raises(ValueError, match=r"ChessboardTarget: the sizes look like millimetres"):
+        object_points(ChessboardTarget(9, 6, 24.0))
+    assert parse_target("charuco:7x5:1.4:1:DICT_5X5_100").square == 1.4  # 9.8 m: taken

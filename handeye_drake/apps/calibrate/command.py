@@ -101,8 +101,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     src.add_argument("--bag", metavar="PATH",
                      help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap (read without ROS)")
     src.add_argument("--images", nargs="+", metavar="PATH",
-                     help="images of the target: files, directories or globs, paired in natural "
-                          "file-name order with the poses of --robot (one each)")
+                     help="images of the target: files, directories or globs, paired with the "
+                          "poses of --robot in order (one each): each argument's files in "
+                          "natural file-name order, the arguments in the order given")
     fmt = p.add_argument_group("reading")
     fmt.add_argument("--format", type=_format_arg, default=None, metavar="FORMAT",
                      help=f"pose file format: {', '.join(FORMAT_NAMES)} (default: from the "
@@ -347,6 +348,8 @@ def _image_table(streams) -> str:
     note = streams.inputs["images"].get("intrinsics_note", "")
     records = streams.images
     lines = [f"images: {len(records)}" + (f"; {note}" if note else "")]
+    if streams.inputs["images"].get("pairing"):
+        lines.append(f"  {streams.inputs['images']['pairing']}")
     from_bag = records[0].message is not None
     lines.append("  " + ("stamp (s)                         message" if from_bag else
                          "image                          robot line")
