@@ -53,3 +53,25 @@ def int_up_to(high: int, why: str):
         return v
     parse.__name__ = f"positive integer ≤ {high}"
     return parse
+
+
+def deg_mm(text: str, positive: bool = True) -> tuple[float, float]:
+    """``DEG,MM``: an angle (degrees) and a length (millimetres), the way every command writes
+    noise and accuracy (``--max-noise``, ``--robot-accuracy``, ``plan --noise``)."""
+    try:
+        deg, mm = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 0.1,1), got {text!r}") from None
+    ok = (deg > 0 and mm > 0) if positive else (deg >= 0 and mm >= 0)
+    if not (ok and math.isfinite(deg) and math.isfinite(mm)):
+        raise argparse.ArgumentTypeError(
+            f"expected two {'positive numbers' if positive else 'numbers ≥ 0'}, got {text!r}")
+    return deg, mm
+
+
+def positive_deg_mm(text: str) -> tuple[float, float]:
+    return deg_mm(text, True)
+
+
+def non_negative_deg_mm(text: str) -> tuple[float, float]:
+    return deg_mm(text, False)

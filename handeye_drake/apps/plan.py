@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .argtypes import int_up_to
+from .argtypes import int_up_to, positive_deg_mm
 from .outputs import prepare_output_dir
 from .pose_args import _numbers, parse_intrinsics, parse_point, parse_pose  # noqa: F401
 from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
@@ -105,17 +105,6 @@ def _estimate_from_recording(args, fixed, mode):
         note = "estimated from the fit's residuals" + (
             f", {dropped} outlying samples dropped" if dropped else "")
     return X_CH, X_FT, X_BE, sr, st, (f"fit of {len(X_BE)} recorded samples", note)
-
-
-def _noise_arg(text: str):
-    import argparse
-    try:
-        deg, mm = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 0.1,1), got {text!r}") from None
-    if not (deg > 0 and mm > 0 and math.isfinite(deg) and math.isfinite(mm)):
-        raise argparse.ArgumentTypeError(f"expected two positive numbers, got {text!r}")
-    return deg, mm
 
 
 def run_plan(args) -> int:
@@ -289,7 +278,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="camera intrinsics, as for calibrate (an OpenCV or ROS camera_info "
                         "YAML) or fx,fy,cx,cy,W,H (pixels): keep only candidates with the target "
                         "in view")
-    p.add_argument("--noise", type=_noise_arg, default=None, metavar="DEG,MM",
+    p.add_argument("--noise", type=positive_deg_mm, default=None, metavar="DEG,MM",
                    help="camera pose noise per axis, rotation (deg) and translation (mm), as "
                         "calibrate's --max-noise and --robot-accuracy are written (default: from "
                         f"the fit with --camera, else {DEFAULT_ROTATION_SIGMA_DEG:g},"

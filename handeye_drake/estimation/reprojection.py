@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
+from .ml import _skew_stack
 from .se3 import inverse, rotation_exp, skew
 
 #: Intrinsics models, simplest first: which of [fx, fy, cx, cy, k1, k2, p1, p2, k3] are free.
@@ -199,14 +200,6 @@ def project(p_C: np.ndarray, v: np.ndarray, jacobians: bool = True):
     return uv, J_p, J_i
 
 
-def _skew_stack(w: np.ndarray) -> np.ndarray:
-    S = np.zeros(w.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -w[..., 2], w[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = w[..., 2], -w[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -w[..., 1], w[..., 0]
-    return S
-
-
 @dataclass
 class _State:
     X_H: np.ndarray
@@ -259,7 +252,7 @@ def _linearize(data: CornerData, st: _State, S_i: np.ndarray, free_scale: bool,
     if not jacobians:
         return res, None, None
     n = len(p_C)
-    R_H, R_HT = st.X_H[:3, :3], st.X_H[:3, :3].T
+    R_HT = st.X_H[:3, :3].T
     A = R_HT[None] @ Ri[:, :3, :3]                                # ∂p0/∂p_F
     G = 12 + S_i.shape[1] + int(free_scale)
     dp = np.zeros((n, 3, G))

@@ -16,7 +16,7 @@ import math
 
 from ...estimation.solvers import METHODS
 from ...recorded.formats import FORMAT_NAMES, MAX_TRANSLATION
-from ..argtypes import positive_float
+from ..argtypes import non_negative_deg_mm, positive_deg_mm, positive_float
 from ..outputs import prepare_output_dir
 from ...calibration.api import DEFAULT_ROBOT_ACCURACY, CalibrationOptions, read_inputs, solve
 from ...calibration.corners import REFINE_CHOICES
@@ -38,27 +38,6 @@ def _time_offset_arg(text: str):
     return v
 
 
-
-
-def _accuracy_arg(text: str):
-    try:
-        deg, mm = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 0.03,0.3), got {text!r}") \
-            from None
-    if not (deg >= 0 and mm >= 0 and math.isfinite(deg) and math.isfinite(mm)):
-        raise argparse.ArgumentTypeError(f"expected two numbers ≥ 0, got {text!r}")
-    return deg, mm
-
-
-def _noise_arg(text: str):
-    try:
-        deg, mm = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected DEG,MM (e.g. 1,10), got {text!r}") from None
-    if not (deg > 0 and mm > 0 and math.isfinite(deg) and math.isfinite(mm)):
-        raise argparse.ArgumentTypeError(f"expected two positive numbers, got {text!r}")
-    return deg, mm
 
 
 def _max_images_arg(text: str):
@@ -192,14 +171,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="hand-eye components known from elsewhere (tx,ty,tz in m or tx_mm…; "
                           "roll,pitch,yaw in rad or roll_deg…) for motions that cannot "
                           "determine them, e.g. tz=0.052 for a SCARA")
-    est.add_argument("--robot-accuracy", type=_accuracy_arg, default=DEFAULT_ROBOT_ACCURACY,
+    est.add_argument("--robot-accuracy", type=non_negative_deg_mm, default=DEFAULT_ROBOT_ACCURACY,
                      metavar="DEG,MM",
                      help="per-axis accuracy of the robot's reported pose over the recorded "
                           "workspace (default 0.03,0.3, an uncalibrated industrial arm): a "
                           "slowly varying robot error is invisible in the residuals, so it is "
                           "added to the σ; 0,0 leaves it out")
     chk = p.add_argument_group("verdict")
-    chk.add_argument("--max-noise", type=_noise_arg, default=(1.0, 10.0), metavar="DEG,MM",
+    chk.add_argument("--max-noise", type=positive_deg_mm, default=(1.0, 10.0), metavar="DEG,MM",
                      help="largest plausible per-axis noise of a camera pose (default 1,10): "
                           "larger residuals FAIL")
     chk.add_argument("--max-hand-eye-distance", type=positive_float, default=None,
