@@ -62,6 +62,8 @@ OUTLIER_FRACTIONS = (0.1, 0.3)
 SCALE_FAIL_SIGMA = 5.0
 #: ... and off by more than this fraction (0.2 %: 1 mm at 0.5 m).
 SCALE_MIN_ERROR = 0.002
+#: The quick fits' scale search resolves the camera translation scale to about 1 %.
+QUICK_SCALE_RESOLUTION = 0.01
 SCALE_WARN_SIGMA = 3.0
 #: Fewest samples for a calibration worth trusting (WARN below).
 MIN_SAMPLES = 8
@@ -251,6 +253,11 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
                 x2 = a + g * (b - a)
                 f2 = cost(x2)
         factor = math.exp(0.5 * (a + b))
+        if abs(factor - 1.0) <= QUICK_SCALE_RESOLUTION:
+            # The best scale is the one given, to what the quick fit on a subset resolves
+            # (the profile of ``pipeline.camera_scale_test`` measures small scales): not a
+            # reading to offer (a 1.003× "wrong size" was a false WARN).
+            raise ValueError(f"the best camera translation scale is {factor:.4g}: as given")
         alt.description = (f"the camera's translations are {1 / factor:.4g}× their true size: a "
                            "wrong target size (the square or marker size given to the detector "
                            "or to --target) or a target printed at another scale")
