@@ -29,7 +29,11 @@ Sections (``--sections``):
   same loop with ``arm.driver: !TwistCommand`` (our Python differential-IK driver on the servo's
   twist) is timed beside them, and the reference with as many idle Python ``LeafSystem``s as the
   loop has (no ports, no events: the simulator's cost of a Python system at each of its steps),
-  for comparison (no target).
+  the reference tracking the poses the loop itself commanded (recorded in one run, replayed: the
+  loop's own motion, so a harder motion is not what the ratio measures), the loop without its
+  log, and the loop's Python callbacks per camera sample (camera, servo, calibrator; each timed
+  in one more run) against the time the 1.3× target leaves for all the loop's own work —
+  for comparison (no targets).
 - ``rendered``: the rendered-camera loop (``run_scenario`` of ``scenarios/rendered.yaml``
   shortened to ``--rendered-duration`` s) against rendering the same frames with the same
   ``RgbdSensor`` at the same arm poses and running ``detect_target`` on them, alone (the
@@ -412,7 +416,7 @@ def _format_row(row: dict) -> str:
     mark = "" if target is None else ("  [MET]" if row["ratio"] <= target else "  [NOT MET]")
     bound = "" if target is None else f" (target ≤ {target:g}×)"
     unit = row.get("unit", "µs")
-    digits = 3 if unit == "s" else 1
+    digits = 3 if unit in ("s", "ms") else 1
     return (f"  {row['what']}: {row['value_us']:.{digits}f} {unit} vs {row['reference']} "
             f"{row['reference_us']:.{digits}f} {unit} → {row['ratio']:.2f}×{bound}{mark}")
 
@@ -496,12 +500,15 @@ def calibrator_section(repeats: int, num_samples: int = 300, log=print) -> list[
 # The closed loop vs the arm driven by Drake's C++ differential IK.
 
 def arm_reference_diagram(scenario, twist_duration: float | None = None,
-                          idle_python_systems: int = 0):
+                          idle_python_systems: int = 0, commanded_poses=None):
     """The scenario's arm plant (same ``plant_config``, same start) driven by Drake's C++
     ``DifferentialInverseKinematicsIntegrator`` at our driver's time step and joint limits,
     toward a fixed pose reached at a constant end-effector twist (its speed limits) — and nothing
     else, but ``idle_python_systems`` Python ``LeafSystem``s without ports or events (what
-    Python systems cost the simulator by being there). Returns (diagram, integrator, plant,
+    Python systems cost the simulator by being there). ``commanded_poses`` ((times, poses) of
+    ``record_commanded_poses``): instead, the loop's own driver (``add_pose_tracking_driver``:
+    the same integrator with frame A = B and the scenario's velocity scale) tracks those poses,
+    replayed by ``PoseReplay`` — the loop's own motion. Returns (diagram, integrator, plant,
     q0)."""
     from pydrake.common.value import AbstractValue
     from pydrake.math import RigidTransform
@@ -528,6 +535,15 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
     control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame, X_WB=X_WB)
     n = control.num_positions()
     dt = scenario.period / 3.0  # the loop's driver step (simulation.add_arm_with_driver)
+    if commanded_poses is not None:
+        # The loop's own driver (frame A = B, its velocity scale, no end-effector speed limit)
+        # fed the loop's own commands.
+        from ..systems.arm import add_pose_tracking_driver
+        driver = add_pose_tracking_driver(builder, handles, control, dt,
+                                          velocity_scale=a.driver.velocity_scale)
+        replay = builder.AddNamedSystem("pose_replay", PoseReplay(*commanded_poses))
+        builder.Connect(replay.get_output_port(), driver.X_BE_desired_input_port())
+        return builder.Build(), driver.integrator, handles.plant, q0
     params = DifferentialInverseKinematicsParameters(n, n)
     params.set_joint_position_limits((control.GetPositionLowerLimits(),
                                       control.GetPositionUpperLimits()))
@@ -560,11 +576,108 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
     return builder.Build(), ik, handles.plant, q0
 
 
+class _Timed:
+    """Wraps methods of classes, adding each call's duration (s) to ``seconds[class name]``
+    (restored on exit): what a system's callbacks cost inside a run."""
+
+    def __init__(self, methods: dict):
+        self.methods, self.seconds, self._saved = methods, {}, []
+
+    def __enter__(self):
+        for cls, names in self.methods.items():
+            self.seconds[cls.__name__] = 0.0
+            for name in names:
+                original = getattr(cls, name)
+                self._saved.append((cls, name, original))
+                setattr(cls, name, self._wrap(original, cls.__name__))
+        return self
+
+    def _wrap(self, original, key):
+        seconds, clock = self.seconds, time.perf_counter
+
+        def timed(*args):
+            start = clock()
+            try:
+                return original(*args)
+            finally:
+                seconds[key] += clock() - start
+        return timed
+
+    def __exit__(self, *exc):
+        for cls, name, original in reversed(self._saved):
+            setattr(cls, name, original)
+
+
+def _loop_callbacks():
+    """{class: its Drake callbacks} of the default loop's Python systems."""
+    from ..systems.calibrator import HandEyeCalibrator
+    from ..systems.camera import HandEyeCamera
+    from ..systems.servo import VisualServoController
+    return {HandEyeCamera: ["_UpdateImage"],
+            VisualServoController: ["_UpdateCommand", "_CalcDesiredPose"],
+            HandEyeCalibrator: ["_UpdateEstimate"]}
+
+
+def record_commanded_poses(scenario):
+    """(times (s), RigidTransforms) of X_BE_desired as Drake's integrator read it in one run of
+    the loop (its time step: three per camera period)."""
+    from pydrake.math import RigidTransform
+
+    from ..simulation import run_scenario
+    from ..systems.servo import VisualServoController
+
+    recorded = {}
+    original = VisualServoController._CalcDesiredPose
+
+    def recording(self, context, output):
+        original(self, context, output)
+        recorded[context.get_time()] = RigidTransform(output.get_value())
+
+    VisualServoController._CalcDesiredPose = recording
+    try:
+        run_scenario(scenario)
+    finally:
+        VisualServoController._CalcDesiredPose = original
+    times = sorted(recorded)
+    return times, [recorded[t] for t in times]
+
+
+def _pose_replay_class():
+    from pydrake.common.value import AbstractValue
+    from pydrake.math import RigidTransform
+    from pydrake.systems.framework import LeafSystem
+
+    class PoseReplay(LeafSystem):
+        """Output ``X_AE_desired`` (abstract RigidTransform): the recorded pose of the latest
+        recorded time ≤ t (a list lookup: the cheapest a Python source can be)."""
+
+        def __init__(self, times, poses):
+            super().__init__()
+            self._times, self._poses = list(times), list(poses)
+            self.DeclareAbstractOutputPort(
+                "X_AE_desired", lambda: AbstractValue.Make(RigidTransform()), self._CalcPose,
+                prerequisites_of_calc={self.time_ticket()})
+
+        def _CalcPose(self, context, output):
+            import bisect
+            i = bisect.bisect_right(self._times, context.get_time()) - 1
+            output.set_value(self._poses[max(i, 0)])
+
+    return PoseReplay
+
+
+def PoseReplay(times, poses):
+    """A ``LeafSystem`` replaying recorded poses (see ``_pose_replay_class``)."""
+    return _pose_replay_class()(times, poses)
+
+
 def loop_section(repeats: int, log=print) -> list[dict]:
     """The default closed loop (``run_scenario``'s simulation time) against the arm alone driven
     by Drake's C++ differential IK (``arm_reference_diagram``), simulating the same duration;
-    beside them the loop with the twist driver, and the reference with as many idle Python
-    systems as the loop has (no target: what they cost)."""
+    beside them (no targets) the loop with the twist driver, the loop without its log, the
+    reference with as many idle Python systems as the loop has (what they cost), the reference
+    tracking the loop's own commanded poses (what the loop's motion costs the arm), and the
+    loop's Python callbacks per camera sample against what the target leaves them."""
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
     from ..scenario import TwistCommand, load_scenario
@@ -579,6 +692,9 @@ def loop_section(repeats: int, log=print) -> list[dict]:
     python_systems = [sys_ for sys_ in build_diagram(scenario, with_loggers=False).diagram
                       .GetSystems() if type(sys_).__module__.startswith("handeye_drake")]
     idle = arm_reference_diagram(scenario, idle_python_systems=len(python_systems))
+    # The same arm and integrator tracking the poses the loop itself commanded (recorded in one
+    # untimed run): the loop's motion without its camera, servo and calibrator.
+    replay = arm_reference_diagram(scenario, commanded_poses=record_commanded_poses(scenario))
 
     def simulate(diagram, ik):
         simulator = Simulator(diagram)
@@ -600,7 +716,27 @@ def loop_section(repeats: int, log=print) -> list[dict]:
         cpu_times["idle"].append(cpu)
         return seconds, None
 
-    cpu_times = {"reference": [], "loop": [], "twist": [], "idle": []}
+    def unlogged_loop():
+        # What run_scenario simulates, without its log (one VectorLogSink of the logged ports).
+        from pydrake.common import RandomGenerator
+        built = build_diagram(scenario, with_loggers=False)
+        simulator = Simulator(built.diagram)
+        ApplySimulatorConfig(scenario.simulator_config, simulator)
+        built.diagram.SetRandomContext(simulator.get_mutable_context(),
+                                       RandomGenerator(int(scenario.seed)))
+        start, cpu = time.perf_counter(), time.process_time()
+        simulator.Initialize()
+        simulator.AdvanceTo(scenario.duration)
+        cpu_times["unlogged"].append(time.process_time() - cpu)
+        return time.perf_counter() - start, None
+
+    def replay_reference():
+        seconds, cpu = simulate(replay[0], replay[1])
+        cpu_times["replay"].append(cpu)
+        return seconds, None
+
+    cpu_times = {"reference": [], "loop": [], "twist": [], "idle": [], "replay": [],
+                 "unlogged": []}
 
     def loop():
         result = run_scenario(scenario)  # wall_time: Initialize + AdvanceTo, as above
@@ -613,7 +749,8 @@ def loop_section(repeats: int, log=print) -> list[dict]:
         return result.wall_time, result
 
     timings = interleaved({"loop": loop, "reference": reference, "twist": twist_loop,
-                           "idle": idle_reference}, repeats)
+                           "idle": idle_reference, "replay": replay_reference,
+                           "unlogged": unlogged_loop}, repeats)
     ref = timings["reference"][0]
     reference_text = (f"arm + C++ DifferentialInverseKinematicsIntegrator (real-time factor "
                       f"{scenario.duration / ref:.2f})")
@@ -639,7 +776,45 @@ def loop_section(repeats: int, log=print) -> list[dict]:
                  "reference_us": ref, "ratio": ours / ref, "target": None,
                  "cpu_ratio": cpu_ratio})
     log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    ours = timings["replay"][0]
+    cpu_ratio = statistics.median(cpu_times["replay"]) / statistics.median(cpu_times["reference"])
+    rows.append({"section": "loop", "what": "the reference tracking the loop's own commanded "
+                 "poses (recorded, replayed by a Python list lookup): the loop's motion",
+                 "value_us": ours, "unit": "s", "reference": "the reference",
+                 "reference_us": ref, "ratio": ours / ref, "target": None,
+                 "cpu_ratio": cpu_ratio})
+    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    ours = timings["unlogged"][0]
+    cpu_ratio = statistics.median(cpu_times["unlogged"]) / statistics.median(cpu_times["reference"])
+    rows.append({"section": "loop", "what": "the closed loop without its log "
+                 "(build_diagram(with_loggers=False))", "value_us": ours, "unit": "s",
+                 "reference": "the reference", "reference_us": ref, "ratio": ours / ref,
+                 "target": None, "cpu_ratio": cpu_ratio})
+    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    rows.append(_callback_budget_row(scenario, ref, log))
     return rows
+
+
+def _callback_budget_row(scenario, reference_seconds: float, log) -> dict:
+    """The loop's Python callbacks per camera sample (one more run, each callback timed) against
+    what the loop target leaves them: (target − 1) × the reference, over the camera samples."""
+    from ..simulation import run_scenario
+
+    with _Timed(_loop_callbacks()) as timed:
+        result = run_scenario(scenario)
+    samples = len(result.times)
+    budget = (TARGETS["loop"] - 1.0) * reference_seconds / samples
+    spent = sum(timed.seconds.values()) / samples
+    parts = ", ".join(f"{name} {seconds / samples * 1e3:.3f}"
+                      for name, seconds in sorted(timed.seconds.items(), key=lambda kv: -kv[1]))
+    row = {"section": "loop", "what": f"Python callbacks per camera sample ({samples} samples; "
+           f"{parts} ms), against what the {TARGETS['loop']:g}× target leaves for all the "
+           "loop's own work", "value_us": spent * 1e3, "unit": "ms",
+           "reference": "the budget", "reference_us": budget * 1e3, "ratio": spent / budget,
+           "target": None, "callbacks_ms": {k: v / samples * 1e3
+                                            for k, v in timed.seconds.items()}}
+    log(_format_row(row))
+    return row
 
 
 # ---------------------------------------------------------------------------------------------

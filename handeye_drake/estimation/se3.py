@@ -20,10 +20,14 @@ def skew(w) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
+_BOTTOM_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
 def make_transform(R, p) -> np.ndarray:
-    X = np.eye(4)
+    X = np.empty((4, 4))  # (every entry is written: cheaper than np.eye, called per sample)
     X[:3, :3] = R
     X[:3, 3] = p
+    X[3] = _BOTTOM_ROW
     return X
 
 

@@ -284,12 +284,13 @@ class VisualServoController(LeafSystem):
         """(R (3×3), p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist
         V_k."""
         x = context.get_discrete_state(self._pose_index).get_value()
-        s = t - x[12]
-        V = x[13:]
-        if s == 0.0 or not V.any():
+        values = x.tolist()  # Python floats: same products as numpy's, less overhead
+        s = t - values[12]
+        V = values[13:]
+        if s == 0.0 or not any(V):
             return x[:9].reshape(3, 3), x[9:12]
-        R, p = _twist_motion(x[:12].tolist(), (s * V).tolist(), orthonormalize)
-        return np.array(R).reshape(3, 3), np.array(p)
+        R, p = _twist_motion(values, [s * v for v in V], orthonormalize)
+        return np.array(R), np.array(p)
 
     def _CalcDesiredPose(self, context, output) -> None:
         R, p = self._DesiredPose(context, context.get_time())
@@ -373,9 +374,19 @@ def _twist_motion(x, sV, orthonormalize: bool):
     cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     ex, ey, ez = ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx
     j = (bx + B * cx + C * ex, by + B * cy + C * ey, bz + B * cz + C * ez)
-    R0 = (x[0:3], x[3:6], x[6:9])
-    R = [[r[0] * E[0][k] + r[1] * E[1][k] + r[2] * E[2][k] for k in range(3)] for r in R0]
-    p = [x[9 + i] + R0[i][0] * j[0] + R0[i][1] * j[1] + R0[i][2] * j[2] for i in range(3)]
+    # R = R0 E and p = p0 + R0 J b, written out (the same products and sums, in the same order,
+    # as row-by-column loops: a third of the cost; this runs three times a camera period).
+    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = E
+    j0, j1, j2 = j
+    r00, r01, r02, r10, r11, r12, r20, r21, r22, p0, p1, p2 = x[:12]
+    R = [[r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21,
+          r00 * e02 + r01 * e12 + r02 * e22],
+         [r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21,
+          r10 * e02 + r11 * e12 + r12 * e22],
+         [r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21,
+          r20 * e02 + r21 * e12 + r22 * e22]]
+    p = [p0 + r00 * j0 + r01 * j1 + r02 * j2, p1 + r10 * j0 + r11 * j1 + r12 * j2,
+         p2 + r20 * j0 + r21 * j1 + r22 * j2]
     if orthonormalize:
         G = [[sum(R[m][i] * R[m][k] for m in range(3)) for k in range(3)] for i in range(3)]
         R = [[sum(r[m] * ((1.5 if m == k else 0.0) - 0.5 * G[m][k]) for m in range(3))

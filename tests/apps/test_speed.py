@@ -104,3 +104,56 @@ def test_corners_section_times_our_fit_and_opencvs_on_the_same_corners():
     # The synthetic set is what the section says: every corner inside the 640×480 image.
     X_BE, board, img, v, X_EC, X_BT = _corner_set(5, seed=3)
     assert len(img) == 5 and all((u >= 0).all() and (u[:, 0] < 640).all() for u in img)
+
+
+def test_the_replayed_reference_moves_the_arm_as_the_loop_did():
+    """The loop section's "loop's own motion" reference: the loop's driver tracking the poses
+    the servo commanded in a run moves the arm exactly as in the loop (same joint positions
+    along the way), so that row compares the same motion."""
+    from pydrake.common import RandomGenerator
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from handeye_drake.scenario import load_scenario
+    from handeye_drake.simulation import build_diagram
+
+    scenario = load_scenario()
+    scenario.duration = 3.0
+    times, poses = speed.record_commanded_poses(scenario)
+    step = scenario.period / 3.0
+    assert len(times) == pytest.approx(scenario.duration / step, abs=2)
+    assert np.all(np.diff(times) > 0.9 * step)
+    diagram, ik, plant, q0 = speed.arm_reference_diagram(scenario, commanded_poses=(times, poses))
+    loop = build_diagram(scenario, with_loggers=False)
+    simulators = []
+    for d, seed_or_ik in ((diagram, ik), (loop.diagram, None)):
+        simulator = Simulator(d)
+        ApplySimulatorConfig(scenario.simulator_config, simulator)
+        context = simulator.get_mutable_context()
+        if seed_or_ik is None:
+            d.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+        else:
+            seed_or_ik.SetPositions(seed_or_ik.GetMyMutableContextFromRoot(context), q0)
+        simulator.Initialize()
+        simulators.append(simulator)
+    worst, q_start = 0.0, None
+    for t in np.linspace(0.1, scenario.duration, 30):
+        q = []
+        for simulator, p in zip(simulators, (plant, loop.plant)):
+            simulator.AdvanceTo(t)
+            q.append(p.GetPositions(p.GetMyContextFromRoot(simulator.get_context())))
+        q_start = q[1] if q_start is None else q_start
+        worst = max(worst, np.abs(q[0] - q[1]).max())
+    moved = np.abs(q[1] - q_start).max()
+    assert moved > 0.05 and worst < 1e-9, (moved, worst)
+
+
+def test_callback_timer_counts_each_call_and_restores_the_methods():
+    class Thing:
+        def _Work(self, n):
+            return sum(range(n))
+
+    original = Thing._Work
+    with speed._Timed({Thing: ["_Work"]}) as timed:
+        assert Thing()._Work(10_000) == sum(range(10_000))
+        assert Thing._Work is not original
+    assert Thing._Work is original and timed.seconds["Thing"] > 0.0
