@@ -134,6 +134,48 @@ def frame_in_body(plant: MultibodyPlant, name: str, arg: str):
     return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
 
 
+class EndEffectorPoseInput:
+    """The end-effector pose input of a system that rides on the hand (``HandEyeCamera``,
+    ``HandCameraPose``): without ``plant`` a vector port ``X_WE`` (12, [vec_row(R); p (m)]);
+    with the arm's finalized ``plant`` an abstract port ``body_poses`` (connect
+    ``plant.get_body_poses_output_port()``), B and E resolved once (``frame_in_body``)."""
+
+    def __init__(self, system, plant, base_frame_name: str, ee_frame_name: str):
+        self._owner = type(system).__name__
+        if plant is None:
+            self.frames = None
+            self.port = system.DeclareVectorInputPort("X_WE", 12)
+        else:
+            # (body index, pose of the frame in its body) of B and E.
+            self.frames = (frame_in_body(plant, base_frame_name, "base_frame_name"),
+                           frame_in_body(plant, ee_frame_name, "ee_frame_name"))
+            self.port = system.DeclareAbstractInputPort(
+                "body_poses", AbstractValue.Make([RigidTransform()]))
+
+    def X_WE_port(self):
+        if self.frames is not None:
+            raise ValueError(f"this {self._owner} reads the plant's body poses (constructed "
+                             "with a plant): use get_body_poses_input_port")
+        return self.port
+
+    def body_poses_port(self):
+        if self.frames is None:
+            raise ValueError(f"this {self._owner} takes X_WE (constructed without a plant): "
+                             "use get_X_WE_input_port")
+        return self.port
+
+    def Eval(self, context):
+        """(x_WE, X_WE, X_BE): the pose vector as read, and with a plant the 4×4 X_WE and X_BE
+        of the arithmetic of ``EndEffectorPoseSensor`` (both None without a plant)."""
+        if self.frames is None:
+            return self.port.Eval(context), None, None
+        poses = self.port.Eval(context)
+        (iB, X_BodyB), (iE, X_BodyE) = self.frames
+        X_WE = poses[iE].GetAsMatrix4() @ X_BodyE
+        X_BE = inverse(poses[iB].GetAsMatrix4() @ X_BodyB) @ X_WE
+        return pose_to_vector(X_WE), X_WE, X_BE
+
+
 def _per_actuator(value, name: str, n: int) -> np.ndarray:
     v = np.full(n, value, dtype=float) if np.ndim(value) == 0 else value
     v = as_matrix(v, name, (n,))
@@ -334,15 +376,7 @@ class DifferentialIkDriver(LeafSystem):
     def __init__(self, control_plant: MultibodyPlant, ee_frame_name: str, time_step: float, q0,
                  velocity_scale: float = 1.0):
         super().__init__()
-        if not isinstance(control_plant, MultibodyPlant) or not control_plant.is_finalized():
-            raise ValueError("control_plant: expected a finalized MultibodyPlant, got "
-                             f"{type(control_plant).__name__}")
-        n = control_plant.num_positions()
-        if n == 0 or control_plant.num_velocities() != n or control_plant.num_actuators() != n:
-            raise ValueError(
-                "control_plant: needs an arm whose joints are all 1-DOF and actuated, got "
-                f"{n} positions, {control_plant.num_velocities()} velocities, "
-                f"{control_plant.num_actuators()} actuators")
+        n = _check_arm_plant(control_plant)
         self._plant = control_plant
         self._frame_E = _check_frame(control_plant, ee_frame_name, "ee_frame_name")
         self._dt = check_positive(time_step, "time_step")

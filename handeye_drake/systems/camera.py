@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common import RandomDistribution
-from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
 from ..estimation.se3 import inverse, pose_to_vector, rotation_exp, vector_to_pose
@@ -27,6 +25,7 @@ from ..vision.camera_model import (
     as_points,
     target_visibility,
 )
+from .arm import EndEffectorPoseInput
 
 _IDENTITY_POSE = pose_to_vector(np.eye(4))
 
@@ -97,16 +96,8 @@ class HandEyeCamera(LeafSystem):
         self._K2 = intrinsics.K[:2, :2]
         self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
 
-        if plant is None:
-            self._frames = None
-            self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
-        else:
-            from .arm import frame_in_body
-            # (body index, pose of the frame in its body) of B and E, resolved once.
-            self._frames = (frame_in_body(plant, base_frame_name, "base_frame_name"),
-                            frame_in_body(plant, ee_frame_name, "ee_frame_name"))
-            self._X_WE_port = self.DeclareAbstractInputPort(
-                "body_poses", AbstractValue.Make([RigidTransform()]))
+        self._ee_input = EndEffectorPoseInput(self, plant, base_frame_name, ee_frame_name)
+        self._X_WE_port, self._frames = self._ee_input.port, self._ee_input.frames
         self._pixel_noise_port = self.DeclareVectorInputPort(
             "pixel_noise", 2 * n, RandomDistribution.kGaussian)
         self._pose_noise_port = self.DeclareVectorInputPort(
@@ -130,10 +121,7 @@ class HandEyeCamera(LeafSystem):
 
     # Ports, as members so users can wire them by handle.
     def get_X_WE_input_port(self):
-        if self._frames is not None:
-            raise ValueError("this HandEyeCamera reads the plant's body poses (constructed with "
-                             "a plant): use get_body_poses_input_port")
-        return self._X_WE_port
+        return self._ee_input.X_WE_port()
 
     def get_pixel_noise_input_port(self):
         return self._pixel_noise_port
@@ -157,10 +145,7 @@ class HandEyeCamera(LeafSystem):
         return self._X_BE_port
 
     def get_body_poses_input_port(self):
-        if self._frames is None:
-            raise ValueError("this HandEyeCamera takes X_WE (constructed without a plant): use "
-                             "get_X_WE_input_port")
-        return self._X_WE_port
+        return self._ee_input.body_poses_port()
 
     # Read-only accessors (numpy copies) for scenarios and tests.
     @property
@@ -208,15 +193,7 @@ class HandEyeCamera(LeafSystem):
     def _UpdateImage(self, context, discrete_state):
         # The per-sample path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
         # the settings checked once in the constructor (tests check it equals them exactly).
-        if self._frames is None:
-            x = self._X_WE_port.Eval(context)
-            X_BE = None
-        else:  # the arithmetic of EndEffectorPoseSensor's X_WE and X_BE
-            poses = self._X_WE_port.Eval(context)
-            (iB, X_BodyB), (iE, X_BodyE) = self._frames
-            X_WE_plant = poses[iE].GetAsMatrix4() @ X_BodyE
-            X_BE = inverse(poses[iB].GetAsMatrix4() @ X_BodyB) @ X_WE_plant
-            x = pose_to_vector(X_WE_plant)
+        x, X_WE_plant, X_BE = self._ee_input.Eval(context)
         if not np.isfinite(x).all():
             raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
                              f"values at t = {context.get_time()}")

@@ -4,13 +4,12 @@ logs and Meshcat (Drake's ``RgbdSensor`` renders on demand and keeps no sampled 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
+from ..estimation.se3 import pose_to_vector, vector_to_pose
 from ..estimation.validation import ROTATION_TOLERANCE, as_transform, check_positive, \
     rotation_defect
+from .arm import EndEffectorPoseInput
 
 
 class HandCameraPose(LeafSystem):
@@ -42,15 +41,8 @@ class HandCameraPose(LeafSystem):
         self._X_EC = as_transform(X_EC, "X_EC")
         self._period = check_positive(period, "period")
         offset = check_positive(offset, "offset", allow_zero=True)
-        if plant is None:
-            self._frames = None
-            self._X_WE_port = self.DeclareVectorInputPort("X_WE", 12)
-        else:
-            from .arm import frame_in_body
-            self._frames = (frame_in_body(plant, base_frame_name, "base_frame_name"),
-                            frame_in_body(plant, ee_frame_name, "ee_frame_name"))
-            self._X_WE_port = self.DeclareAbstractInputPort(
-                "body_poses", AbstractValue.Make([RigidTransform()]))
+        self._ee_input = EndEffectorPoseInput(self, plant, base_frame_name, ee_frame_name)
+        self._X_WE_port, self._frames = self._ee_input.port, self._ee_input.frames
         self._X_WC_index = self.DeclareDiscreteState(pose_to_vector(np.eye(4)))
         self._X_BE_index = self.DeclareDiscreteState(pose_to_vector(np.eye(4)))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, offset, self._Sample)
@@ -59,16 +51,10 @@ class HandCameraPose(LeafSystem):
         self._X_BE_port = self.DeclareStateOutputPort("X_BE", self._X_BE_index)
 
     def get_X_WE_input_port(self):
-        if self._frames is not None:
-            raise ValueError("this HandCameraPose reads the plant's body poses (constructed "
-                             "with a plant): use get_body_poses_input_port")
-        return self._X_WE_port
+        return self._ee_input.X_WE_port()
 
     def get_body_poses_input_port(self):
-        if self._frames is None:
-            raise ValueError("this HandCameraPose takes X_WE (constructed without a plant): "
-                             "use get_X_WE_input_port")
-        return self._X_WE_port
+        return self._ee_input.body_poses_port()
 
     def get_X_BE_output_port(self):
         return self._X_BE_port
@@ -81,15 +67,8 @@ class HandCameraPose(LeafSystem):
         return self._X_EC.copy()
 
     def _Sample(self, context, state):
-        if self._frames is None:
-            x = np.array(self._X_WE_port.Eval(context), dtype=float)
-            X_BE = None
-        else:  # the arithmetic of EndEffectorPoseSensor's X_WE and X_BE
-            poses = self._X_WE_port.Eval(context)
-            (iB, X_BodyB), (iE, X_BodyE) = self._frames
-            X_WE = poses[iE].GetAsMatrix4() @ X_BodyE
-            X_BE = inverse(poses[iB].GetAsMatrix4() @ X_BodyB) @ X_WE
-            x = pose_to_vector(X_WE)
+        x, _, X_BE = self._ee_input.Eval(context)
+        x = np.asarray(x, dtype=float)
         if not np.all(np.isfinite(x)) or rotation_defect(x[:9].reshape(3, 3)) > \
                 ROTATION_TOLERANCE:
             raise ValueError(f"X_WE input of {self.get_name()!r}: not a finite rigid pose at "
