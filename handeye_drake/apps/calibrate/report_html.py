@@ -690,7 +690,11 @@ def _poses_3d_plot(result, streams) -> str:
                 ax.plot([], [], label=label, **style)
             ax.legend(fontsize=8, loc="upper left")
         else:
-            ax.set_zticklabels([])
+            # Seen from above the z axis is edge-on: its ticks would pile up in a corner.
+            ax.set_zticks([])
+            ax.tick_params(axis="y", pad=8)   # clear of the tick marks (they hid the minus)
+            ax.set_xlabel("x_B (m)", labelpad=10)
+            ax.set_ylabel("y_B (m)", labelpad=22)
         ax.view_init(elev=elev, azim=azim)
         ax.set_title(title, fontsize=10)
     fig.suptitle("Poses in the robot base B through the result (axes: x red, y green, z blue)",
