@@ -2,7 +2,8 @@
 
 Run: ``python diagrams/calibrator_alone.py`` — for each estimator, simulates 100 motions with the
 paper's noise (coefficients of R_A σ = 0.01, t_A σ = 0.1, ‖t_X‖ ≈ 170), prints the two-motion and
-final errors of X_EC, and writes calibrator_alone.dot (and .svg with graphviz) here.
+final errors of X_EC, and writes calibrator_alone.dot (compact) and calibrator_alone_full.dot
+(every port), and their .svg with graphviz, here.
 """
 from pathlib import Path
 

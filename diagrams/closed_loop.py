@@ -1,6 +1,7 @@
 """The full closed loop of the default scenario: arm, camera, IBVS and Kalman calibrator.
 
-Run: ``python diagrams/closed_loop.py`` — writes closed_loop.dot (and .svg with graphviz) here.
+Run: ``python diagrams/closed_loop.py`` — writes closed_loop.dot (compact) and
+closed_loop_full.dot (every port), and their .svg with graphviz, here.
 """
 from pathlib import Path
 

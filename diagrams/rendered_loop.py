@@ -1,7 +1,8 @@
 """The closed loop on rendered images (scenarios/rendered.yaml): the arm, a rendered camera on
 the flange (RgbdSensor through SceneGraph), the target detector, IBVS and the calibrator.
 
-Run: ``python diagrams/rendered_loop.py`` — writes rendered_loop.dot (and .svg with graphviz)
+Run: ``python diagrams/rendered_loop.py`` — writes rendered_loop.dot (compact) and
+rendered_loop_full.dot (every port), and their .svg with graphviz,
 here.
 """
 from pathlib import Path

@@ -322,16 +322,22 @@ class CalibrationResult:
         return report.to_dict(self)
 
     def export(self, formats="all", parent_frame: str | None = None,
-               child_frame: str = "camera_optical_frame") -> dict:
+               child_frame: str = "camera_optical_frame", *, mount_offset=None,
+               optical_frame: str | None = None) -> dict:
         """{file name: text} of the result as robot-description files
         (``recorded.exports.export_texts``: urdf, xacro, ros2, drake, camera_config, json, tum).
-        ValueError when the verdict is FAIL: a failed calibration is not exported."""
+        With ``mount_offset`` (4×4 X_MC, the optical frame in the camera's mount link, e.g.
+        ``recorded.camera_description.read_camera_offset("d435.urdf", "camera_link",
+        "camera_color_optical_frame")``), ``child_frame`` names the mount link and the files
+        attach it (the URDF as the joint alone). ValueError when the verdict is FAIL: a failed
+        calibration is not exported."""
         if self.verdict.status == "FAIL":
             raise ValueError("export: the verdict is FAIL (" + "; ".join(
                 r.message for r in self.verdict.reasons[:2]) + ")")
         return export_texts(self.X_hand, formats, mode=self.mode, parent_frame=parent_frame,
                             child_frame=child_frame, X_std=self.covariance,
-                            intrinsics=self.intrinsics)
+                            intrinsics=self.intrinsics, mount_offset=mount_offset,
+                            optical_frame=optical_frame)
 
 
 def residual_summary(deg: np.ndarray, m: np.ndarray) -> dict:

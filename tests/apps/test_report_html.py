@@ -166,3 +166,26 @@ def test_eye_to_hand_images_report(tmp_path):
         doc["X_BC"]["std"]["translation_m"])
     assert len(re.findall(r'<div class="panel" id="img-\d+">', text)) == 10
     assert_self_contained(text)
+
+
+def test_an_alternative_that_was_not_fitted_shows_no_residuals():
+    """The camera-scale reading is not fitted when the best scale is the one given: its row
+    names the reading and says why, with "–" for its residuals (not ∞, an infinitely bad fit)."""
+    import math
+    from types import SimpleNamespace
+
+    from handeye_drake.apps.calibrate.report_html import _alternatives_html
+    from handeye_drake.calibration.checks import Hypothesis
+    hyps = [Hypothesis("as_read", "the data as read", "", 0.03, 8e-5, 0.09),
+            Hypothesis("robot_millimetres", "the robot file's translations are in millimetres",
+                       "--robot-translation-scale 0.001", 0.03, 0.04, 0.5),
+            Hypothesis("camera_scale", "", "", math.inf, math.inf, math.inf,
+                       error="the best camera translation scale is 0.9997: as given")]
+    result = SimpleNamespace(hypotheses=hyps, settings={"max_noise": (1.0, 0.01),
+                                                        "max_hand_eye_distance_m": 0.5})
+    rows = re.findall(r"<tr><td>.*?</tr>", _alternatives_html(result))
+    assert len(rows) == 3 and "∞" not in "".join(rows)
+    assert "the camera&#x27;s translations at another scale" in rows[2]
+    assert "not fitted: the best camera translation scale is 0.9997: as given" in rows[2]
+    assert rows[2].count('<td class="n">–</td>') == 3
+    assert '<td class="n">40</td>' in rows[1]                     # 0.04 m in mm

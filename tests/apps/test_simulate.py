@@ -14,8 +14,9 @@ def test_simulate_writes_its_artefacts_and_a_quiet_summary(tmp_path, capfd):
     out = tmp_path / "out"
     assert main(["simulate", "--out", str(out), "--no-progress"]) == 0
     stdout, stderr = capfd.readouterr()
-    names = {p.name for p in out.iterdir()} - {"diagram.svg"}  # .svg only with graphviz
-    assert names == {".handeye-drake-output.json", "diagram.dot", "feature_error.png",
+    names = {p.name for p in out.iterdir()} - {"diagram.svg", "diagram_full.svg"}  # graphviz
+    assert names == {".handeye-drake-output.json", "diagram.dot", "diagram_full.dot",
+                     "feature_error.png",
                      "handeye_error.png", "image_trajectories.png", "replay.html",
                      "summary.json"}
     summary = json.loads((out / "summary.json").read_text())

@@ -200,9 +200,30 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="--export: link the camera hangs from (default: with --bag, the "
                           "end-effector of --robot-frames, its base for eye-to-hand; else "
                           "tool0, base_link for eye-to-hand)")
-    out.add_argument("--child-frame", default="camera_optical_frame", metavar="FRAME",
-                     help="--export: the camera frame (OpenCV/ROS optical: x right, y down, "
-                          "z forward)")
+    out.add_argument("--child-frame", default=None, metavar="FRAME",
+                     help="--export: the camera frame the exports attach (default: "
+                          "camera_optical_frame), the optical frame itself (OpenCV/ROS "
+                          "optical: x right, y down, z forward); with --mount-offset or "
+                          "--camera-urdf, "
+                          "the camera's mount link instead (e.g. camera_link): the URDF/xacro "
+                          "then hold only the joint, and the camera driver's own description "
+                          "declares the link and its optical frame")
+    mount = out.add_mutually_exclusive_group()
+    mount.add_argument("--mount-offset", metavar="X,Y,Z,QX,QY,QZ,QW",
+                       help="--export to a mount link: the optical frame's fixed pose in the "
+                            "--child-frame link, X_MC: translation in metres, unit quaternion "
+                            "in ROS order (x, y, z, w); e.g. 0,0,0,-0.5,0.5,-0.5,0.5 for a ROS "
+                            "camera_link (x forward, z up) and its optical frame at the same "
+                            "point")
+    mount.add_argument("--camera-urdf", metavar="FILE",
+                       help="--export to a mount link: the camera's own URDF, or a plain "
+                            "xacro (xacro:property and ${...} arithmetic; expand others with "
+                            "`xacro`): X_MC is composed from the fixed joints between the "
+                            "--child-frame link and --optical-frame")
+    out.add_argument("--optical-frame", default=None, metavar="LINK",
+                     help="with --camera-urdf (needed) or --mount-offset: the optical frame's "
+                          "name, e.g. camera_color_optical_frame (default with --mount-offset: "
+                          "camera_optical_frame)")
     out.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
                      help=f"output directory (default {DEFAULT_OUT}); an existing one must be "
                           "empty or hold this command's earlier output")
@@ -250,6 +271,7 @@ def run_calibrate_command(args) -> int:
     if args.image_topic and not args.bag:
         raise ValueError("--image-topic: reads the images of a ROS bag; give --bag PATH")
     mode = args.mode.replace("-", "_")
+    child_frame, mount_offset, optical_frame, mount_note = camera_mount_from_args(args)
     out = prepare_output_dir(args.out, "calibrate", args.force)
     robot_scale, camera_scale = _scales(args)
     streams = read_inputs(
@@ -275,8 +297,9 @@ def run_calibrate_command(args) -> int:
     if args.export and result.verdict.status != "FAIL":
         from ...recorded.exports import export_texts
         texts = export_texts(result.X_hand, args.export, mode=mode,
-                             parent_frame=parent_frame, child_frame=args.child_frame,
-                             X_std=result.covariance, intrinsics=intrinsics_used)
+                             parent_frame=parent_frame, child_frame=child_frame,
+                             X_std=result.covariance, intrinsics=intrinsics_used,
+                             mount_offset=mount_offset, optical_frame=optical_frame)
         for name, text in texts.items():
             p = out.path(name)
             p.write_text(text)
@@ -291,12 +314,54 @@ def run_calibrate_command(args) -> int:
     print(table(result))
     if args.export and result.verdict.status == "FAIL":
         print("no export: the verdict is FAIL")
-    elif args.export and parent_note:
-        print(parent_note)
+    elif args.export:
+        for note in (parent_note, mount_note):
+            if note:
+                print(note)
     print("wrote: " + ", ".join(str(p) for p in written[:12])
           + (f", … ({len(written) - 12} more)" if len(written) > 12 else ""))
     status = result.verdict.status
     return 1 if status == "FAIL" or (status == "WARN" and args.strict) else 0
+
+
+def camera_mount_from_args(args):
+    """(child frame, X_MC or None, optical frame or None, note) of ``--child-frame``,
+    ``--mount-offset`` / ``--camera-urdf`` and ``--optical-frame``; ValueError naming the
+    argument (checked before anything is read or written)."""
+    from ...recorded.exports import DEFAULT_CHILD_FRAME
+    given = "--mount-offset" if args.mount_offset else "--camera-urdf" if args.camera_urdf \
+        else None
+    if given is None:
+        if args.optical_frame is not None:
+            raise ValueError("--optical-frame: names the optical frame of a mount link; give "
+                             "--camera-urdf FILE or --mount-offset too")
+        return args.child_frame or DEFAULT_CHILD_FRAME, None, None, ""
+    if not args.export:
+        raise ValueError(f"{given}: attaches the exports to a mount link; give --export FORMATS "
+                         "too")
+    if args.child_frame is None:
+        raise ValueError(f"--child-frame: with {given}, name the camera's mount link the "
+                         "optical frame's offset is from (e.g. --child-frame camera_link)")
+    if args.mount_offset:
+        from ..pose_args import parse_pose
+        optical = args.optical_frame or DEFAULT_CHILD_FRAME
+        return args.child_frame, parse_pose(args.mount_offset, "--mount-offset"), optical, ""
+    if args.optical_frame is None:
+        raise ValueError("--optical-frame: with --camera-urdf, name the optical frame in it "
+                         "(e.g. camera_color_optical_frame)")
+    from ...recorded.camera_description import CameraDescription
+    description = CameraDescription(args.camera_urdf, {
+        "path": "--camera-urdf", "mount": "--child-frame", "optical": "--optical-frame"})
+    X_MC = description.offset(args.child_frame, args.optical_frame)
+    joints = ", ".join(description.chain(args.child_frame, args.optical_frame))
+    note = (f"exports attach the mount link {args.child_frame}; {args.optical_frame} is at "
+            f"X_MC from it through the fixed joints {joints} of {args.camera_urdf}")
+    above = description.parent_joint(args.child_frame)
+    if above is not None:
+        note += (f"\nnote: {args.child_frame} already has a parent joint in {args.camera_urdf} "
+                 f"({above.name} from {above.parent}); with the exported joint it would have "
+                 "two: attach the camera description's root link, or drop that joint")
+    return args.child_frame, X_MC, args.optical_frame, note
 
 
 def _parent_frame(args, streams, mode) -> tuple[str | None, str]:

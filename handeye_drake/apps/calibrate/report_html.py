@@ -63,7 +63,7 @@ nav{font-size:14px;margin:8px 0 6px}nav a{margin-right:14px}
 .verdict ul{margin:6px 0 2px 0;padding-left:20px}.verdict li{margin:3px 0}
 .lvl{font-weight:700;padding:0 5px;border-radius:3px;background:rgba(255,255,255,.25)}
 .notes{background:#fff;border:1px solid #ddd;border-radius:6px;padding:6px 14px;font-size:14px}
-.cards{display:flex;flex-wrap:wrap;gap:14px}
+.cards{display:flex;flex-wrap:wrap;gap:14px;align-items:flex-start}
 .card{background:#fff;border:1px solid #ddd;border-radius:8px;padding:10px 16px;flex:1 1 300px}
 .card.wide{flex:2 1 560px}
 table{border-collapse:collapse;font-size:14px;background:#fff}
@@ -502,11 +502,13 @@ def _image_rms_plot(samples, name) -> str:
         ax.set_xticklabels([name(samples[i]) for i in x[::max(1, len(x) // 40)]], rotation=90,
                            fontsize=7)
     ax.set_ylabel("RMS (px)")
-    ax.set_title("Corner residuals per image")
+    ax.set_title("Corner residuals per image", pad=26)
     ax.grid(True, axis="y", alpha=0.3)
     top = np.nanmax(np.concatenate([rms, fit_rms])) if len(rms) else 1.0
-    ax.set_ylim(0, 1.5 * top if np.isfinite(top) and top > 0 else 1.0)  # room for the legend
-    ax.legend(fontsize=8, loc="upper right", ncol=2)
+    ax.set_ylim(0, 1.12 * top if np.isfinite(top) and top > 0 else 1.0)
+    # Above the axes, under the title: inside them it hid the top tick labels and tall bars.
+    ax.legend(fontsize=7.5, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2,
+              frameon=False, borderaxespad=0.2, columnspacing=1.2)
     return _fig_uri(fig)
 
 
@@ -688,7 +690,11 @@ def _poses_3d_plot(result, streams) -> str:
                 ax.plot([], [], label=label, **style)
             ax.legend(fontsize=8, loc="upper left")
         else:
-            ax.set_zticklabels([])
+            # Seen from above the z axis is edge-on: its ticks would pile up in a corner.
+            ax.set_zticks([])
+            ax.tick_params(axis="y", pad=8)   # clear of the tick marks (they hid the minus)
+            ax.set_xlabel("x_B (m)", labelpad=10)
+            ax.set_ylabel("y_B (m)", labelpad=22)
         ax.view_init(elev=elev, azim=azim)
         ax.set_title(title, fontsize=10)
     fig.suptitle("Poses in the robot base B through the result (axes: x red, y green, z blue)",
@@ -752,6 +758,11 @@ def _checks_html(result) -> str:
     return "".join(out)
 
 
+#: Names of the alternatives whose description is only set when they apply.
+_ALTERNATIVE_NAMES = {"camera_scale": "the camera's translations at another scale (a wrong "
+                                      "target size, or a target printed at another scale)"}
+
+
 def _alternatives_html(result) -> str:
     from ...calibration.checks import explaining
     hyps = result.hypotheses or []
@@ -764,11 +775,16 @@ def _alternatives_html(result) -> str:
     for h in hyps:
         mark = ('<span class="bad">explains the data better</span>' if h.code in explains
                 else "")
-        err = f'<br><small class="err">{_e(h.error)}</small>' if h.error else ""
-        rows.append(f"<tr><td>{_e(h.description)}{err}</td>"
-                    f'<td class="n">{_num(h.rotation_deg, "{:.3g}")}</td>'
-                    f'<td class="n">{_num(1000 * h.translation_m, "{:.3g}")}</td>'
-                    f'<td class="n">{_num(h.hand_eye_distance, "{:.3g}")}</td>'
+        # An alternative that was not fitted (its reading did not apply: e.g. the best camera
+        # scale is the one given) has no residuals: "–", not an infinitely bad fit.
+        values = (h.rotation_deg, 1000 * h.translation_m, h.hand_eye_distance)
+        fitted = not h.error or all(math.isfinite(float(v)) for v in values)
+        err = (f'<br><small class="err">{"" if fitted else "not fitted: "}{_e(h.error)}'
+               "</small>" if h.error else "")
+        description = h.description or _ALTERNATIVE_NAMES.get(h.code, h.code.replace("_", " "))
+        numbers = "".join(f'<td class="n">{_num(v, "{:.3g}") if fitted else "–"}</td>'
+                          for v in values)
+        rows.append(f"<tr><td>{_e(description)}{err}</td>{numbers}"
                     f"<td>{mark}</td><td>{_e(h.fix)}</td></tr>")
     return ("<p>The usual mistakes, each undone and re-fitted quickly on a subset of the samples "
             "(median pose residuals): one that fits far better than the data as read is named "
