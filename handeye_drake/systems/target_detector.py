@@ -6,6 +6,8 @@ image once per camera period and holds the result on its output ports.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
@@ -14,10 +16,26 @@ from pydrake.systems.sensors import ImageGrey8U, ImageRgba8U
 from ..estimation.se3 import pose_to_vector
 from ..estimation.validation import check_positive
 from ..vision.camera_model import CameraIntrinsics
-from ..vision.detection import as_grey_image, detect_target
+from ..vision.detection import TargetDetection, as_grey_image, detect_target
 from ..vision.targets import object_points, validate_target
 
 _INPUT_TYPES = {"rgba": ("color_image", ImageRgba8U), "grey": ("grey_image", ImageGrey8U)}
+
+
+
+class _HeldDetection(TargetDetection):
+    """The detection held in the detector's abstract state. Drake deep-copies abstract state
+    (``copy.deepcopy``) whenever it clones a state — twice a frame — which copied every array of
+    the detection; a held detection is never modified (the next frame's replaces it), so the
+    copies share it. Treat the ``detection`` output as read-only."""
+
+    def __deepcopy__(self, memo):
+        return self
+
+    @classmethod
+    def of(cls, detection: TargetDetection) -> "_HeldDetection":
+        return cls(**{f.name: getattr(detection, f.name)
+                      for f in dataclasses.fields(TargetDetection)})
 
 
 class TargetDetector(LeafSystem):
@@ -51,7 +69,8 @@ class TargetDetector(LeafSystem):
         found (1): 1.0 if the target was found in this frame, else 0.0.
         num_points (1): number of target points detected in this frame (0 when not found).
         detection (abstract): the ``TargetDetection`` of this frame (None before the first
-            sample), e.g. for ``draw_detection``.
+            sample; read-only: shared, not copied, between state copies), e.g. for
+            ``draw_detection``.
     """
 
     def __init__(self, target, intrinsics: CameraIntrinsics, period: float, offset: float = 0.0,
@@ -219,4 +238,5 @@ class TargetDetector(LeafSystem):
         discrete.get_mutable_vector(self._found_index).SetFromVector(
             [1.0 if detection.found else 0.0])
         discrete.get_mutable_vector(self._num_points_index).SetFromVector([float(num_points)])
-        state.get_mutable_abstract_state(self._detection_index).set_value(detection)
+        state.get_mutable_abstract_state(self._detection_index).set_value(
+            _HeldDetection.of(detection))

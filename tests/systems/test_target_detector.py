@@ -4,6 +4,7 @@ The closed-loop-like test moves a camera on a free floating body (gravity off, z
 it stays where the test puts it) in front of a ChArUco board and steps a Simulator.
 """
 
+import copy
 import math
 
 import cv2
@@ -23,6 +24,7 @@ from handeye_drake.estimation.se3 import inverse, make_transform, rotation_exp, 
     vector_to_pose
 from handeye_drake.systems.rendered_camera import add_target_geometry, mount_rendered_camera
 from handeye_drake.systems.target_detector import TargetDetector
+from handeye_drake.vision.detection import TargetDetection
 from handeye_drake.vision.camera_model import CameraIntrinsics
 from handeye_drake.vision.targets import object_points, parse_target, pattern_extent, \
     render_target
@@ -121,6 +123,12 @@ def test_detector_holds_updates_and_loses_the_target(floating_camera_loop):
     simulator.AdvanceTo(1.5 * PERIOD)
     b = outputs(detector, context)
     assert b["found"][0] == 1.0 and 4 <= b["num_points"][0] < 24
+    # The held detection is shared between Drake's state copies, never modified: frame A's is
+    # still frame A's, and a copy of frame B's is itself.
+    assert np.array_equal(vector_to_pose(a["X_CT"]), a["detection"].X_CT)
+    assert not np.array_equal(a["detection"].X_CT, b["detection"].X_CT)
+    assert isinstance(b["detection"], TargetDetection)
+    assert copy.deepcopy(b["detection"]) is b["detection"]
     assert np.array_equal(b["visible"], [0.0, 1.0, 0.0, 1.0])
     features = b["features"].reshape(4, 2)
     rows = [list(b["detection"].ids).index(i) for i in (5, 23)]
