@@ -122,7 +122,8 @@ def run(method, seed, world, planner, pool, pattern, args, cell=None):
     rng = np.random.default_rng(1000 + seed)
     options = CalibrationOptions(robot_accuracy_deg=ROBOT_NOISE[0],
                                  robot_accuracy_mm=ROBOT_NOISE[1], seed=seed)
-    next_pose = as_session_planner(planner, pool) if method == "session" else None
+    next_pose = as_session_planner(planner, pool, replan_after=args.replan_after) \
+        if method == "session" else None
     session = CalibrationSession(args.sigma[0], args.sigma[1], options, next_pose=next_pose,
                                  camera_sigma_deg=0.1, camera_sigma_mm=1.0)
     if method == "random":
@@ -182,6 +183,7 @@ def run(method, seed, world, planner, pool, pattern, args, cell=None):
             break
         pose = step.next_pose
     rec = {"method": method, "seed": seed, "poses": poses, "stopped": bool(step and step.stop),
+           "replanned": getattr(next_pose, "replanned", 0),
            "collisions": int(collisions), "infeasible": int(infeasible), "lost": lost,
            "min_clearance_m": float(min_clear)}
     if step is not None and step.rotation_sigma_deg is not None:
@@ -242,11 +244,20 @@ def main():
                     help=f"--camera rendered: the board (default {TARGET_SPEC}, 0.2 × 0.15 m)")
     ap.add_argument("--supersample", type=int, default=2,
                     help="--camera rendered: anti-aliasing factor of the sensor (default 2)")
+    ap.add_argument("--replan-after", type=int, default=None, metavar="N",
+                    help="session: after N samples re-solve the IK of the unvisited candidates "
+                         "with the current estimate of the mount (default: never)")
+    ap.add_argument("--methods", default="session,random,half-sphere",
+                    help="comma-separated subset of session,random,half-sphere")
     ap.add_argument("--json", default=None)
     ap.add_argument("--picture", default=None, metavar="PNG",
                     help="also draw the first seed's session tour")
     args = ap.parse_args()
     args.sigma = tuple(float(x) for x in args.target_sigma.split(","))
+    methods = [m for m in args.methods.split(",") if m]
+    if not methods or any(m not in ("session", "random", "half-sphere") for m in methods):
+        raise SystemExit(f"--methods: expected a subset of session,random,half-sphere, got "
+                         f"{args.methods!r}")
     # The planner keeps the board 60 px inside the image: the rough mount is ~5° off.
     view = ViewSpec(distance_range_m=(0.3, 0.7), max_tilt_deg=40, intrinsics=K,
                     target_points=BOARD, margin_px=60)
@@ -269,7 +280,7 @@ def main():
             pattern = pattern_configs(planner, view)
             if not pattern:
                 raise SystemExit("half-sphere pattern: no pose reachable")
-        for method in ("session", "random", "half-sphere"):
+        for method in methods:
             records.append(run(method, seed, world, planner, pool, pattern, args, cell))
         if seed == 0:
             print(f"half-sphere pattern: {len(pattern)} of {len(half_sphere(planner, view))} "
@@ -281,8 +292,8 @@ def main():
                 write_picture(planner, tour, args.picture)
         print(f"seed {seed}: " + ", ".join(
             f"{r['method']} {r['poses']}{'' if r['stopped'] else '+'}"
-            for r in records[-3:]) + f"  ({time.time() - t0:.0f} s)", flush=True)
-    rows = [summary(records, m, args.max_poses) for m in ("session", "random", "half-sphere")]
+            for r in records[-len(methods):]) + f"  ({time.time() - t0:.0f} s)", flush=True)
+    rows = [summary(records, m, args.max_poses) for m in methods]
     if cell is None:
         camera = (f"camera pose oracle {CAMERA_NOISE[0]}° / {CAMERA_NOISE[1]} mm per axis")
     else:
@@ -298,6 +309,10 @@ def main():
         print(table_row(r))
     took = time.time() - t0
     load = os.getloadavg()
+    if args.replan_after:
+        n = [r["replanned"] for r in records if r["method"] == "session"]
+        print(f"\nsession: IK re-solved with the estimated mount after {args.replan_after} "
+              f"samples, {sum(n)} candidates in {len(n)} runs")
     print(f"\n{took:.0f} s; load average {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f}")
     if args.json:
         with open(args.json, "w") as fh:
