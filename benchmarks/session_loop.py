@@ -4,7 +4,9 @@ feasible poses and a half-sphere pattern.
 
     python benchmarks/session_loop.py [--seeds 20] [--camera rendered|oracle] [--supersample 2]
                                       [--target-sigma 0.1,0.5] [--max-poses 40]
-                                      [--candidates 60] [--json FILE] [--picture FILE]
+                                      [--candidates 60] [--replan-after N]
+                                      [--methods session,random,half-sphere]
+                                      [--json FILE] [--picture FILE]
 
 The cell: the shipped UR5e (with its collision capsules) on a table (floor plane at z = 0), a
 0.2 × 0.15 m ChArUco board (8 × 6 squares of 25 mm, 35 inner corners; ``--target``) lying face
@@ -19,6 +21,8 @@ only know a rough mount, as from a drawing (3.5 cm, −2.5 cm, 5.5 cm; rpy 2°, 
 - session: ``CalibrationSession`` with ``planning.as_session_planner`` — after each sample the
   D-optimal best unvisited pose, reached by a straight joint move (or via the start pose when
   that move is not collision-free);
+  with ``--replan-after N``, the IK of the unvisited views is solved again once after N samples
+  with the session's estimate of the mount (``as_session_planner(replan_after=N)``);
 - random: the same pool in a random order;
 - half-sphere: the hand-written pattern — the camera on a half-sphere around the board's centre
   (straight above at four rolls, then 8 azimuths at 20° and 8 at 35° tilt, 0.6/0.65 m (nearer,

@@ -288,7 +288,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--bag", metavar="PATH", help="samples from a ROS bag (ROS 2 directory, "
                    ".db3, .mcap; a finished ROS 1 .bag); with --follow, one being recorded")
     p.add_argument("--follow", action="store_true",
-                   help="keep reading the file as it grows (until stop or --idle-timeout)")
+                   help="keep reading the file (or --bag) as it grows (until stop or "
+                        "--idle-timeout)")
     p.add_argument("--idle-timeout", "--timeout-s", dest="idle_timeout", type=float,
                    default=60.0, metavar="SECONDS",
                    help="--follow: give up after this long without a new sample (default 60)")
