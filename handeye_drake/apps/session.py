@@ -1,6 +1,8 @@
 """``handeye-drake session``: a live calibration that says what to record next and when to stop.
 
     handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,0.5
+    handeye-drake session --bag BAG [--follow] --robot-frames base_link:tool0
+                          (--camera-topic TOPIC | --camera-frames CAM:TARGET | --image-topic TOPIC)
                           [--candidates FILE | --feasible] [--hand-eye POSE --target POSE]
                           [--mode eye-in-hand] [--state FILE [--resume]] [--out DIR]
 
@@ -12,7 +14,15 @@ A thin command around ``calibration.session.CalibrationSession``. Each input lin
   PATH`` instead of X_CT (``--target-spec`` and ``--intrinsics`` then needed).
 
 ``#`` starts a comment. ``--follow`` keeps reading a growing file (a driver appending to it) until
-stop or ``--idle-timeout`` seconds without a new line. After each sample one line: σ (deg, mm;
+stop or ``--idle-timeout`` (``--timeout-s``) seconds without a new line.
+
+``--bag``: the samples of a ROS bag (``recorded.bag_follow.BagFollower``): each camera message
+(a pose topic, a tf pair, or an image with ``--target-spec`` and ``--intrinsics``) with the
+robot pose from tf interpolated at its stamp. With ``--follow`` the bag is polled every
+``--poll-s`` while the recorder writes it (ROS 2 sqlite3 or MCAP storage; a ROS 1 bag once it is
+closed), each new sample added as it arrives, until stop or ``--idle-timeout`` seconds without
+one. The samples are paired at the camera stamps, so the batch takes the clocks as synchronized
+(time offset 0). After each sample one line: σ (deg, mm;
 tool and 0.5 m in front, mm), the verdict so far, the next pose (with ``--candidates``: the
 D-optimal best of those poses; with ``--feasible``: a reachable, collision-free pose from Drake's
 IK for the shipped UR5e or ``--urdf``). At stop, ``calibration.json`` is written into ``--out``.
@@ -103,6 +113,36 @@ def _lines(args):
             time.sleep(0.1)
 
 
+def _bag_samples(args):
+    """(sample, where) from --bag, polling a growing bag with --follow."""
+    from ..recorded.bag_follow import BagFollower
+    if args.poll_s <= 0:
+        raise ValueError(f"--poll-s: must be > 0, got {args.poll_s}")
+    follower = BagFollower(args.bag, args.robot_frames, camera_topic=args.camera_topic,
+                           camera_frames=args.camera_frames, image_topic=args.image_topic,
+                           camera_invert=args.camera_invert)
+    idle = time.monotonic()
+    reported = 0
+    while True:
+        new = follower.poll()
+        for where, why in follower.dropped[reported:]:
+            print(f"{where}: no sample ({why})", file=sys.stderr)
+        reported = len(follower.dropped)
+        for sample in new:
+            yield sample, sample["where"]
+        if new:
+            idle = time.monotonic()
+        if not args.follow:
+            if follower.last_error and not new and reported == 0:
+                raise ValueError(f"--bag: {follower.last_error}")
+            return
+        if time.monotonic() - idle > args.idle_timeout:
+            why = f" (last: {follower.last_error})" if follower.last_error else ""
+            print(f"--bag: no new sample for {args.idle_timeout:g} s{why}", file=sys.stderr)
+            return
+        time.sleep(args.poll_s)
+
+
 def _next_text(pose) -> str:
     if pose is None:
         return ""
@@ -155,6 +195,14 @@ def run_session(args) -> int:
         raise ValueError(f"--robot-accuracy: expected DEG,MM ≥ 0, got {args.robot_accuracy!r}")
     if args.resume and not args.state:
         raise ValueError("--resume: needs --state FILE")
+    if (args.samples is None) == (args.bag is None):
+        raise ValueError("--samples / --bag: give one source of samples")
+    if args.bag is None and (args.camera_topic or args.camera_frames or args.image_topic):
+        raise ValueError("--camera-topic / --camera-frames / --image-topic: only with --bag")
+    if args.bag is not None and sum(x is not None for x in (
+            args.camera_topic, args.camera_frames, args.image_topic)) != 1:
+        raise ValueError("--bag: give one camera source: --camera-topic, --camera-frames or "
+                         "--image-topic")
     if args.idle_timeout <= 0:
         raise ValueError(f"--idle-timeout: must be > 0, got {args.idle_timeout}")
     out = prepare_output_dir(args.out, "session", args.force)
@@ -168,7 +216,8 @@ def run_session(args) -> int:
             print(session.last.line())
     else:
         options = CalibrationOptions(mode=mode, robot_accuracy_deg=float(acc[0]),
-                                     robot_accuracy_mm=float(acc[1]))
+                                     robot_accuracy_mm=float(acc[1]),
+                                     time_offset_s=0.0 if args.bag else None)
         session = CalibrationSession(float(sigma[0]), float(sigma[1]), options, next_pose)
         if next_pose is not None:
             first = next_pose([], None, None)
@@ -180,17 +229,22 @@ def run_session(args) -> int:
     if args.intrinsics:
         intrinsics = parse_intrinsics(args.intrinsics)
     step = session.last
-    for line, where in _lines(args):
-        sample = parse_sample(line, where)
+    if args.image_topic and (target is None or intrinsics is None):
+        raise ValueError("--image-topic: image samples need --target-spec and --intrinsics")
+    source = _bag_samples(args) if args.bag else (
+        (parse_sample(line, where), where) for line, where in _lines(args))
+    for sample, where in source:
         if sample is None:
             continue
         if "image" in sample:
             if target is None or intrinsics is None:
                 raise ValueError(f"{where}: an image sample needs --target-spec and --intrinsics")
-            import cv2
-            img = cv2.imread(sample["image"], cv2.IMREAD_GRAYSCALE)
-            if img is None:
-                raise ValueError(f"{where}: cannot read the image {sample['image']!r}")
+            img = sample["image"]
+            if isinstance(img, str):
+                import cv2
+                img = cv2.imread(sample["image"], cv2.IMREAD_GRAYSCALE)
+                if img is None:
+                    raise ValueError(f"{where}: cannot read the image {sample['image']!r}")
             step = session.add(sample["X_BE"], image=img, target=target, intrinsics=intrinsics,
                                stamp=sample["stamp"])
         else:
@@ -229,12 +283,28 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Reads samples one by one (a file, a growing file with --follow, or stdin) "
                     "and after each prints the estimate's σ, the verdict so far and the next "
                     "pose; stops when σ reaches --target-sigma with verdict OK.")
-    p.add_argument("--samples", required=True, metavar="FILE",
+    p.add_argument("--samples", metavar="FILE",
                    help="sample lines (see the module help), '-' for stdin")
+    p.add_argument("--bag", metavar="PATH", help="samples from a ROS bag (ROS 2 directory, "
+                   ".db3, .mcap; a finished ROS 1 .bag); with --follow, one being recorded")
     p.add_argument("--follow", action="store_true",
-                   help="keep reading the file as it grows (until stop or --idle-timeout)")
-    p.add_argument("--idle-timeout", type=float, default=60.0, metavar="SECONDS",
-                   help="--follow: give up after this long without a new line (default 60)")
+                   help="keep reading the file (or --bag) as it grows (until stop or "
+                        "--idle-timeout)")
+    p.add_argument("--idle-timeout", "--timeout-s", dest="idle_timeout", type=float,
+                   default=60.0, metavar="SECONDS",
+                   help="--follow: give up after this long without a new sample (default 60)")
+    b = p.add_argument_group("ROS bags (--bag)")
+    b.add_argument("--robot-frames", default="base_link:tool0", metavar="BASE:EE",
+                   help="X_BE from /tf and /tf_static (default base_link:tool0)")
+    b.add_argument("--camera-topic", metavar="TOPIC", help="X_CT poses (PoseStamped, "
+                   "PoseWithCovarianceStamped or TransformStamped)")
+    b.add_argument("--camera-frames", metavar="CAMERA:TARGET", help="X_CT from tf")
+    b.add_argument("--camera-invert", action="store_true",
+                   help="the camera topic (frames) hold X_TC, the camera in the target")
+    b.add_argument("--image-topic", metavar="TOPIC", help="images of the board (Image or "
+                   "CompressedImage; with --target-spec and --intrinsics)")
+    b.add_argument("--poll-s", type=float, default=0.5, metavar="SECONDS",
+                   help="--follow: how often to re-read the bag (default 0.5)")
     p.add_argument("--target-sigma", default="0.1,0.5", metavar="DEG,MM",
                    help="stop when the hand-eye σ (RMS radius) is at most DEG and MM (default "
                         "0.1,0.5)")

@@ -725,7 +725,8 @@ class FeasiblePlanner:
 
 
 def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_start=None,
-                       rotation_sigma: float = 0.002, translation_sigma: float = 0.001):
+                       rotation_sigma: float = 0.002, translation_sigma: float = 0.001,
+                       replan_after: int | None = None):
     """A next-pose callable for ``calibration.session.CalibrationSession``: at each call, the
     D-optimal best of the not yet visited feasible candidates given the samples so far and the
     current estimates (or the planner's own poses before any), with its joint configuration and
@@ -737,9 +738,44 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
     the pose, or the start configuration then the pose when the straight move is not clear) and
     ``min_path_distance_m`` (the smallest clearance along it, m); or None when every candidate
     has been visited. With an estimate X_H and intrinsics, candidates whose image would not hold
-    every target point by the margin through that estimate are passed over."""
+    every target point by the margin through that estimate are passed over.
+
+    ``replan_after`` = N: once N samples are in and an estimate X_H exists, the IK of every
+    unvisited candidate is solved again (once) with the estimate as the camera mount: the flange
+    pose that puts the camera where the candidate's view was aimed through the planner's rough
+    mount (X_BE X_HC_rough = X_BE' X_H; eye-in-hand only), within 5 mm / 1°, joint limits, clearance and the view
+    re-checked through the estimate; a candidate whose re-solve fails keeps its old solution.
+    The planner's rough mount aims the views a few degrees off (the 60 px image margin absorbs
+    it); re-solved views are centred as intended. ``candidates`` itself is not modified (the
+    callable works on a copy, ``next_pose.candidates``); ``next_pose.replanned`` counts the
+    candidates re-solved."""
+    if replan_after is not None and (isinstance(replan_after, bool)
+                                     or not isinstance(replan_after, int) or replan_after < 1):
+        raise ValueError(f"replan_after: expected None or an integer ≥ 1, got {replan_after!r}")
+    if replan_after is not None and planner.mode != "eye_in_hand":
+        raise ValueError("replan_after: re-solving with the estimated mount is for eye-in-hand")
     visited = set()
-    state = {"q": planner.q_nominal if q_start is None else np.asarray(q_start, float)}
+    state = {"q": planner.q_nominal if q_start is None else np.asarray(q_start, float),
+             "replanned": False}
+    candidates = CandidateSet(np.array(candidates.q, float), np.array(candidates.X_BE, float),
+                              candidates.attempts, candidates.rejected)
+
+    def resolve(X_H, free):
+        X_rough = planner.X_HC
+        planner.X_HC = np.asarray(X_H, float)   # the view constraints and checks use it
+        count = 0
+        try:
+            for i in free:
+                X_des = candidates.X_BE[i] @ X_rough @ inverse(planner.X_HC)
+                q, ok = planner.solve_ik(X_des, candidates.q[i], position_tolerance_m=0.005,
+                                         angle_tolerance_deg=1.0)
+                if ok and planner.check(q).ok:
+                    candidates.q[i] = q
+                    candidates.X_BE[i] = planner.X_BE(q)
+                    count += 1
+        finally:
+            planner.X_HC = X_rough
+        next_pose.replanned = count
 
     def next_pose(samples_X_BE, X_H=None, X_F=None, rotation_sigma=rotation_sigma,
                   translation_sigma=translation_sigma):
@@ -752,6 +788,10 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
         free = [i for i in range(len(candidates)) if i not in visited]
         if not free:
             return None
+        if (replan_after is not None and not state["replanned"] and X_H is not None
+                and len(samples_X_BE) >= replan_after):
+            state["replanned"] = True
+            resolve(X_H, free)
         X_HC = planner.X_HC if X_H is None else X_H
         X_FT = planner.X_FT if X_F is None else X_F
         visible = np.zeros(len(candidates), bool)
@@ -781,6 +821,8 @@ def as_session_planner(planner: FeasiblePlanner, candidates: CandidateSet, q_sta
         visited.update(int(i) for i in order)   # unreachable from here: try the next ones
         return next_pose(samples_X_BE, X_H, X_F, rotation_sigma, translation_sigma)
 
+    next_pose.replanned = 0
+    next_pose.candidates = candidates
     return next_pose
 
 

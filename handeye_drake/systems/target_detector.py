@@ -39,8 +39,8 @@ class _HeldDetection(TargetDetection):
 
 
 class TargetDetector(LeafSystem):
-    """Every ``period`` seconds (first at ``offset``, and once at initialization) reads the
-    camera image, runs ``detect_target(image, target, intrinsics)`` and holds the result until
+    """Every ``period`` seconds (first at ``offset``, once at initialization, and at each
+    ``ExecuteForcedEvents`` on its context or the diagram's) reads the camera image, runs ``detect_target(image, target, intrinsics)`` and holds the result until
     the next sample, so the outputs are cheap to evaluate and the image is rendered and detected
     once per frame.
 
@@ -129,6 +129,8 @@ class TargetDetector(LeafSystem):
         self._detection_index = self.DeclareAbstractState(AbstractValue.Make(None))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, self._offset, self._Detect)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._Detect)
+        # And on demand (``ExecuteForcedEvents``): one frame where a kinematic loop wants it.
+        self.DeclareForcedUnrestrictedUpdateEvent(self._Detect)
 
         self._X_CT_port = self.DeclareStateOutputPort("X_CT_measured", self._X_CT_index)
         self._features_port = self.DeclareStateOutputPort("features", self._features_index)

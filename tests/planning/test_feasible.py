@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from handeye_drake.apps.cli import main
-from handeye_drake.estimation.se3 import make_transform, rotation_exp
+from handeye_drake.estimation.se3 import make_transform, rotation_angle, rotation_exp
 from handeye_drake.planning import (CandidateSet, Cell, FeasiblePlanner, InfeasibleError,
                                     ViewSpec)
 from handeye_drake.planning.cell import Box, load_cell
@@ -237,3 +237,37 @@ def test_cli_session_suggests_feasible_poses(tmp_path, capsys):
     assert "planner: 5 reachable, collision-free views" in text
     nexts = [line for line in text.splitlines() if "next: X_BE" in line]
     assert len(nexts) == 4 and all(" q [" in line for line in nexts)
+
+
+def test_replan_re_solves_the_views_with_the_estimated_mount(planner):
+    """The planner aims its views with a rough mount; with the true mount as the estimate,
+    re-solved candidates put the camera where the rough mount aimed it, and the caller's
+    candidate set is left as it was."""
+    from handeye_drake.planning import as_session_planner
+    cands = planner.sample_candidates(6)
+    before = cands.X_BE.copy()
+    X_true = X_EC @ make_transform(rotation_exp(np.radians([2.0, -1.5, 1.0])), [0.006, 0, -0.004])
+    next_pose = as_session_planner(planner, cands, replan_after=2)
+    with pytest.raises(ValueError, match="replan_after"):
+        as_session_planner(planner, cands, replan_after=0)
+    first = next_pose([], None, None)
+    assert next_pose.replanned == 0
+    second = next_pose([first["X_BE"]], X_true, X_BT)
+    assert next_pose.replanned == 0                       # one sample < replan_after
+    third = next_pose([first["X_BE"], second["X_BE"]], X_true, X_BT)
+    assert 1 <= next_pose.replanned <= 4
+    assert np.array_equal(cands.X_BE, before)             # the caller's set untouched
+    new = next_pose.candidates
+    changed = [i for i in range(len(cands)) if not np.allclose(new.X_BE[i], before[i])]
+    assert len(changed) == next_pose.replanned
+    for i in changed:
+        # The re-solved flange pose puts the true camera (nearly) where the rough one was aimed:
+        # within the IK's 5 mm box and 1° of X_BE' = X_BE X_EC_rough inv(X_EC_estimate).
+        aimed, got = before[i] @ X_EC @ np.linalg.inv(X_true), new.X_BE[i]
+        assert np.linalg.norm(got[:3, 3] - aimed[:3, 3]) <= 0.0051 * math.sqrt(3)
+        assert math.degrees(rotation_angle(got[:3, :3].T @ aimed[:3, :3])) <= 1.01
+        f = planner.check(new.q[i])               # limits and clearance (view: rough mount)
+        assert f.within_limits and f.min_distance_m >= planner.min_distance_m - 1e-4
+        assert planner.in_view(new.X_BE[i], X_true, X_BT)   # the view through the estimate
+        assert np.allclose(planner.X_BE(new.q[i]), new.X_BE[i])
+    assert third["index"] not in (first["index"], second["index"])
