@@ -767,30 +767,19 @@ def loop_section(repeats: int, log=print) -> list[dict]:
                      "ratio": ours / ref, "target": target, "cpu_ratio": cpu_ratio,
                      "final_rotation_error_deg": summary["final_rotation_error_deg"]})
         log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
-    ours = timings["idle"][0]
-    cpu_ratio = statistics.median(cpu_times["idle"]) / statistics.median(cpu_times["reference"])
-    rows.append({"section": "loop", "what": f"the reference with {len(python_systems)} idle "
-                 "Python LeafSystems (as many as the loop has: "
-                 f"{', '.join(sorted(sys_.get_name() for sys_ in python_systems))})",
-                 "value_us": ours, "unit": "s", "reference": "the reference",
-                 "reference_us": ref, "ratio": ours / ref, "target": None,
-                 "cpu_ratio": cpu_ratio})
-    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
-    ours = timings["replay"][0]
-    cpu_ratio = statistics.median(cpu_times["replay"]) / statistics.median(cpu_times["reference"])
-    rows.append({"section": "loop", "what": "the reference tracking the loop's own commanded "
-                 "poses (recorded, replayed by a Python list lookup): the loop's motion",
-                 "value_us": ours, "unit": "s", "reference": "the reference",
-                 "reference_us": ref, "ratio": ours / ref, "target": None,
-                 "cpu_ratio": cpu_ratio})
-    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
-    ours = timings["unlogged"][0]
-    cpu_ratio = statistics.median(cpu_times["unlogged"]) / statistics.median(cpu_times["reference"])
-    rows.append({"section": "loop", "what": "the closed loop without its log "
-                 "(build_diagram(with_loggers=False))", "value_us": ours, "unit": "s",
-                 "reference": "the reference", "reference_us": ref, "ratio": ours / ref,
-                 "target": None, "cpu_ratio": cpu_ratio})
-    log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
+    beside = (
+        ("idle", f"the reference with {len(python_systems)} idle Python LeafSystems (as many as "
+         f"the loop has: {', '.join(sorted(sys_.get_name() for sys_ in python_systems))})"),
+        ("replay", "the loop's own driver tracking the poses the loop commanded (recorded, "
+         "replayed by a Python list lookup): the loop's motion"),
+        ("unlogged", "the closed loop without its log (build_diagram(with_loggers=False))"))
+    for key, what in beside:
+        ours = timings[key][0]
+        cpu_ratio = statistics.median(cpu_times[key]) / statistics.median(cpu_times["reference"])
+        rows.append({"section": "loop", "what": what, "value_us": ours, "unit": "s",
+                     "reference": "the reference", "reference_us": ref, "ratio": ours / ref,
+                     "target": None, "cpu_ratio": cpu_ratio})
+        log(_format_row(rows[-1]) + f"; CPU time ratio {cpu_ratio:.2f}×")
     rows.append(_callback_budget_row(scenario, ref, log))
     return rows
 
