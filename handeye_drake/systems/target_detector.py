@@ -22,7 +22,6 @@ from ..vision.targets import object_points, validate_target
 _INPUT_TYPES = {"rgba": ("color_image", ImageRgba8U), "grey": ("grey_image", ImageGrey8U)}
 
 
-
 class _HeldDetection(TargetDetection):
     """The detection held in the detector's abstract state. Drake deep-copies abstract state
     (``copy.deepcopy``) whenever it clones a state — twice a frame — which copied every array of
@@ -40,9 +39,9 @@ class _HeldDetection(TargetDetection):
 
 class TargetDetector(LeafSystem):
     """Every ``period`` seconds (first at ``offset``, once at initialization, and at each
-    ``ExecuteForcedEvents`` on its context or the diagram's) reads the camera image, runs ``detect_target(image, target, intrinsics)`` and holds the result until
-    the next sample, so the outputs are cheap to evaluate and the image is rendered and detected
-    once per frame.
+    ``ExecuteForcedEvents`` on its context or the diagram's) reads the camera image, runs
+    ``detect_target(image, target, intrinsics)`` and holds the result until the next sample,
+    so the outputs are cheap to evaluate and the image is rendered and detected once per frame.
 
     ``feature_ids`` chooses the N target points reported as image features (ids as in
     ``object_points(target)``; default: all of them, in that order), e.g. the four outer corners
