@@ -296,6 +296,13 @@ class _Xacro:
         except (TypeError, ZeroDivisionError, OverflowError) as e:
             raise ValueError(f"{self.where}: cannot evaluate {text!r} ({e})") from None
 
+    def _number(self, n, text):
+        value = self._node(n, text)
+        if not _is_number(value):
+            raise ValueError(f"{self.where}: cannot evaluate {text!r} (arithmetic on "
+                             f"{value!r}, not a number)")
+        return value
+
     def _node(self, n, text):
         if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)) \
                 and not isinstance(n.value, bool):
@@ -308,9 +315,18 @@ class _Xacro:
                 and n.value.id == "math" and (n.attr in _CONSTANTS or n.attr in _FUNCTIONS):
             return _CONSTANTS.get(n.attr, _FUNCTIONS.get(n.attr))
         if isinstance(n, ast.BinOp) and type(n.op) in _BINARY:
-            return _BINARY[type(n.op)](self._node(n.left, text), self._node(n.right, text))
+            # Numbers only, and powers in floats: bounded time and memory (an int 9**9**9 or a
+            # string repeated 10**9 times would not be); an overflow or a complex power is
+            # refused.
+            a, b = self._number(n.left, text), self._number(n.right, text)
+            if isinstance(n.op, ast.Pow):
+                a, b = float(a), float(b)
+            value = _BINARY[type(n.op)](a, b)
+            if not _is_number(value):
+                raise ValueError(f"{self.where}: cannot evaluate {text!r} (not a real number)")
+            return value
         if isinstance(n, ast.UnaryOp) and type(n.op) in _UNARY:
-            return _UNARY[type(n.op)](self._node(n.operand, text))
+            return _UNARY[type(n.op)](self._number(n.operand, text))
         if isinstance(n, ast.Call) and not n.keywords:
             f = n.func
             fn = None
@@ -320,9 +336,17 @@ class _Xacro:
                     and f.value.id == "math" and f.attr in _FUNCTIONS:
                 fn = _FUNCTIONS[f.attr]
             if fn is not None:
-                return fn(*(self._node(a, text) for a in n.args))
+                args = [self._number(a, text) for a in n.args]
+                try:
+                    return fn(*args)
+                except ValueError as e:  # math's domain errors: sqrt(-1), log(0), ...
+                    raise ValueError(f"{self.where}: cannot evaluate {text!r} ({e})") from None
         raise ValueError(f"{self.where}: cannot evaluate {text!r} (only numbers, properties, "
                          "pi, + - * / ** % and math functions)")
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _format(value) -> str:

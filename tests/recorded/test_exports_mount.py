@@ -212,6 +212,15 @@ J = '<joint name="{0}" type="fixed"><parent link="{1}"/><child link="{2}"/>{3}</
      r"cannot evaluate .*only numbers, properties"),
     (J.format("j", "a", "b", "") + J.format("k", "a", "b", ""), False,
      "link 'b' is the child of two joints"),
+    # Bounded time and memory, and the argument named, for arithmetic a file should not hold.
+    (J.format("j", "a", "b", '<origin xyz="${9**9**9} 0 0"/>'), True,
+     r"cannot evaluate .*result too large|cannot evaluate .*Numerical result out of range"),
+    (J.format("j", "a", "b", '<origin xyz="${\'a\' * 1000000000} 0 0"/>'), True,
+     r"cannot evaluate .*not a number"),
+    (J.format("j", "a", "b", '<origin xyz="${sqrt(-1)} 0 0"/>'), True,
+     r"cannot evaluate .*math domain error"),
+    (J.format("j", "a", "b", '<origin xyz="${(-8)**(1/3)} 0 0"/>'), True,
+     r"cannot evaluate .*not a real number"),
 ])
 def test_bad_descriptions_are_one_line_value_errors(body, xacro, message, tmp_path):
     with pytest.raises(ValueError, match=message) as e:
