@@ -78,6 +78,8 @@ from .vision.camera_model import CameraIntrinsics, project_points, target_visibi
 
 #: Final RMS feature error (px) above which a run's servo counts as not converged.
 SERVO_CONVERGED_PX = 5.0
+#: Steps of the arm's driver (and of its set-point interpolator) per camera period.
+DRIVER_STEPS_PER_PERIOD = 3
 
 
 def intrinsics_of(scenario: Scenario) -> CameraIntrinsics:
@@ -207,7 +209,7 @@ def add_arm_with_driver(scenario: Scenario, builder: DiagramBuilder) -> _Arm:
                          f"got {len(q0)}")
     handles = add_arm(builder, plant_config=scenario.plant_config, urdf=urdf,
                       base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
-    time_step = scenario.period / 3.0
+    time_step = scenario.period / DRIVER_STEPS_PER_PERIOD
     if isinstance(a.driver, TwistCommand):
         driver = builder.AddNamedSystem("diff_ik", DifferentialIkDriver(
             control_plant, a.ee_frame, time_step, q0, velocity_scale=a.driver.velocity_scale))
@@ -502,6 +504,10 @@ def add_calibrator(scenario: Scenario, builder: DiagramBuilder, arm: _Arm, camer
         num_self_calibration_motions=len(scenario.servo.self_calibration),
         init_method=scenario.calibrator.init_method,
         max_self_calibration_samples=int(np.ceil(self_calibration_time / period)) + 4,
+        # Any time strictly between two triggers reads the same held sample; the driver's first
+        # step after the trigger adds no simulator step of its own (half a period would add one
+        # per period).
+        offset=period / DRIVER_STEPS_PER_PERIOD,
         name="calibrator")
     return calibrator, sampled_X_BE
 

@@ -524,6 +524,7 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
 
     from ..estimation.se3 import make_transform, rotation_exp
     from ..scenario import transform_matrix
+    from ..simulation import DRIVER_STEPS_PER_PERIOD
     from ..systems.arm import add_arm, make_control_plant
 
     a = scenario.arm
@@ -534,7 +535,7 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
                       base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
     control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame, X_WB=X_WB)
     n = control.num_positions()
-    dt = scenario.period / 3.0  # the loop's driver step (simulation.add_arm_with_driver)
+    dt = scenario.period / DRIVER_STEPS_PER_PERIOD  # the loop's driver step
     if commanded_poses is not None:
         # The loop's own driver (frame A = B, its velocity scale, no end-effector speed limit)
         # fed the loop's own commands.

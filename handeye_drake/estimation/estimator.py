@@ -183,12 +183,10 @@ class EstimatorBase:
             self._nis_count += 1
 
     def _counters_vector(self) -> np.ndarray:
-        return self._COUNTERS.pack(num_updates=self._num_updates,
-                                   num_rejected=self._num_rejected,
-                                   num_skipped=self._num_skipped, consecutive=self._consecutive,
-                                   num_inflations=self._num_inflations, last_nis=self._last_nis,
-                                   nis_sum=self._nis_sum, nis_count=self._nis_count,
-                                   excitation=self._excitation.S)
+        # ``_COUNTERS``'s order, written out (it runs at every sample of the calibrator).
+        return np.array([self._num_updates, self._num_rejected, self._num_skipped,
+                         self._consecutive, self._num_inflations, self._last_nis, self._nis_sum,
+                         self._nis_count, *self._excitation.S.ravel().tolist()], dtype=float)
 
     def _set_counters(self, v) -> None:
         c = self._COUNTERS.unpack(v)

@@ -27,7 +27,7 @@ from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dpotrs as _potrs
 from scipy.stats import chi2
 
-from . import defaults
+from . import defaults, kernels
 from .configs import ManifoldFilter, TargetFilter
 from .estimator import EstimatorBase, VectorLayout, rotation_vector_between
 from .orthonormalize import orthonormalize_unchecked
@@ -46,6 +46,7 @@ from .validation import as_transform, check_covariance, check_noisy_rotation
 _I3 = np.eye(3)
 _I3.flags.writeable = False
 _EYES = {}
+_NO_R_BE_REF = np.full(9, np.nan)  # (to_vector of a filter whose target is not placed yet)
 
 
 def _eye(n: int) -> np.ndarray:
@@ -144,9 +145,31 @@ def covariance_inflation(z, H, P, Rn, target_nis: float, max_scale: float = 1e12
     return float(np.exp(hi))
 
 
+def pose_pair_update(estimate, P, measurement, residual, retract, Rn, gate=np.inf,
+                     iterations: int = 3):
+    """``error_state_update`` with ``residual = pose_residual`` and ``retract =
+    retract_pose_pair`` (the target filter's), compiled (``kernels.pose_update``): the same
+    arithmetic, equal to rounding. The rare cases the kernel leaves (an innovation covariance
+    that is not positive definite, a residual rotation off SO(3)) take the numpy path."""
+    X_CE, X_BT = estimate
+    X_EB, R_CTm, t_CTm = measurement
+    bound = min(gate, 6 * defaults.GROSS_ERROR_SIGMAS**2)
+    X_CE_new, X_BT_new, P_new, code, nis = kernels.pose_update(
+        np.ascontiguousarray(X_CE), np.ascontiguousarray(X_BT), np.ascontiguousarray(P),
+        np.ascontiguousarray(X_EB), np.ascontiguousarray(R_CTm), np.ascontiguousarray(t_CTm),
+        np.ascontiguousarray(Rn, dtype=float), float(bound), int(iterations))
+    if code == 2:
+        return error_state_update(estimate, P, measurement, residual, retract, Rn, gate,
+                                  iterations)
+    if code == 1:
+        return estimate, P, False, float(nis)
+    return (X_CE_new, X_BT_new), P_new, True, float(nis)
+
+
 def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, gate,
                              iterations: int, consecutive_rejections: int,
-                             max_consecutive_rejections: int | None):
+                             max_consecutive_rejections: int | None,
+                             update=error_state_update):
     """``error_state_update`` with the NIS gate's lock-out recovery, as a pure function.
 
     When this measurement would be the ``max_consecutive_rejections``-th rejection in a row, so
@@ -155,10 +178,13 @@ def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, ga
     discarded. P is then inflated just enough for this innovation to look typical (χ² median);
     a measurement that no state error explains, or a gross error, stays rejected.
 
+    ``update``: ``error_state_update`` or a function with its signature and results
+    (``pose_pair_update``).
+
     Returns (estimate, P, accepted, nis, inflated).
     """
-    est, P_new, accepted, nis = error_state_update(estimate, P, measurement, residual, retract,
-                                                   Rn, gate, iterations)
+    est, P_new, accepted, nis = update(estimate, P, measurement, residual, retract, Rn, gate,
+                                       iterations)
     if (accepted or max_consecutive_rejections is None or not np.isfinite(nis)
             or consecutive_rejections + 1 < max_consecutive_rejections):
         return est, P_new, accepted, nis, False
@@ -168,8 +194,8 @@ def gated_error_state_update(estimate, P, measurement, residual, retract, Rn, ga
     s = covariance_inflation(z, H, P, Rn, float(chi2.ppf(0.5, len(z))))
     if s is None:
         return est, P_new, False, nis, False
-    est, P_new, accepted, _ = error_state_update(estimate, s * P, measurement, residual,
-                                                 retract, Rn, np.inf, iterations)
+    est, P_new, accepted, _ = update(estimate, s * P, measurement, residual, retract, Rn,
+                                     np.inf, iterations)
     return est, P_new, accepted, nis, accepted
 
 
@@ -241,11 +267,13 @@ def _check_sample(X_BE, X_CT) -> tuple[np.ndarray, np.ndarray]:
 class _ErrorStateFilter(EstimatorBase):
     """The gated, iterated update shared by both filters."""
 
+    _update_function = staticmethod(error_state_update)
+
     def _gated_update(self, meas, Rn, process) -> bool:
         est, P, accepted, nis, inflated = gated_error_state_update(
             self._estimate, self._P + process, meas, self._residual, self._retract, Rn,
             self._gate, self.config.iterations, self._consecutive,
-            self.config.max_consecutive_rejections)
+            self.config.max_consecutive_rejections, self._update_function)
         self._last_nis = nis
         if not accepted:
             self._P = P
@@ -253,7 +281,9 @@ class _ErrorStateFilter(EstimatorBase):
             self._consecutive += 1
             return False
         parts = est if isinstance(est, tuple) else (est,)
-        if not (all(np.all(np.isfinite(v)) for v in parts) and np.all(np.isfinite(P))):
+        # (a sum is NaN or infinite when any entry is, or when it overflows: far beyond any
+        # pose or covariance an update can meaningfully reach)
+        if not math.isfinite(sum(float(v.sum()) for v in parts) + float(P.sum())):
             raise ValueError("the update produced a non-finite estimate; state left unchanged")
         self._estimate, self._P = est, P
         self._num_updates += 1
@@ -445,6 +475,7 @@ class HandEyeTargetFilter(_ErrorStateFilter):
 
     _residual = staticmethod(pose_residual)
     _retract = staticmethod(retract_pose_pair)
+    _update_function = staticmethod(pose_pair_update)
 
     def update(self, X_BE, X_CT, X_CT_covariance=None) -> bool:
         """Fuses one synchronized sample; False if the NIS gate rejected it (the state is then
@@ -456,7 +487,7 @@ class HandEyeTargetFilter(_ErrorStateFilter):
         return self._update(X_BE, X_CT, X_CT_covariance)
 
     def _update(self, X_BE, X_CT, X_CT_covariance=None) -> bool:
-        R_CTm = orthonormalize_unchecked(X_CT[:3, :3], "svd")
+        R_CTm = kernels.project_to_rotation(np.ascontiguousarray(X_CT[:3, :3]))
         if not self._target_known:
             # The first sample only places the target (X_BT implied by it and the current
             # hand-eye estimate), keeping its prior covariance: fusing it would make a first
@@ -470,11 +501,14 @@ class HandEyeTargetFilter(_ErrorStateFilter):
             return False
         Rn = (X_CT_covariance if self.config.use_measurement_covariance
               and X_CT_covariance is not None else self._Rn)
-        fused = self._gated_update((inverse(X_BE), R_CTm, X_CT[:3, 3]), Rn, self._G1)
+        X_EB = kernels.inverse_pose(np.ascontiguousarray(X_BE))
+        fused = self._gated_update((X_EB, R_CTm, X_CT[:3, 3]), Rn, self._G1)
         if fused:
             if self._R_BE_ref is None:  # X_BT_init given: no placing sample
                 self._R_BE_ref = X_BE[:3, :3].copy()
-            self._excitation.add(rotation_vector_between(self._R_BE_ref, X_BE[:3, :3]))
+            M = self._R_BE_ref.T @ X_BE[:3, :3]
+            self._excitation.add(kernels.rotation_log(M) if kernels.is_orthonormal(M)
+                                 else rotation_vector_between(self._R_BE_ref, X_BE[:3, :3]))
         return fused
 
     def _X_CE_hat(self) -> np.ndarray:
@@ -499,12 +533,13 @@ class HandEyeTargetFilter(_ErrorStateFilter):
 
     # ------------------------------------------------------------------------------ vector
     def to_vector(self) -> np.ndarray:
+        # ``_LAYOUT``'s order, written out (the calibrator stores it at every sample).
         X_CE, X_BT = self._estimate
-        return self._LAYOUT.pack(
-            X_CE=pose_to_vector(X_CE), X_BT=pose_to_vector(X_BT), P=self._P,
-            target_known=float(self._target_known),
-            R_BE_ref=np.full(9, np.nan) if self._R_BE_ref is None else self._R_BE_ref,
-            counters=self._counters_vector())
+        return np.concatenate((
+            X_CE[:3, :3].ravel(), X_CE[:3, 3], X_BT[:3, :3].ravel(), X_BT[:3, 3],
+            self._P.ravel(), (float(self._target_known),),
+            _NO_R_BE_REF if self._R_BE_ref is None else self._R_BE_ref.ravel(),
+            self._counters_vector()))
 
     @classmethod
     def from_vector(cls, config: TargetFilter, vector):

@@ -49,6 +49,7 @@ from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import MatrixGain, StateInterpolatorWithDiscreteDerivative
 
+from ..estimation import kernels
 from ..estimation.se3 import inverse, pose_to_vector
 from ..estimation.validation import as_matrix, as_transform, check_positive
 
@@ -171,9 +172,8 @@ class EndEffectorPoseInput:
             return self.port.Eval(context), None, None
         poses = self.port.Eval(context)
         (iB, X_BodyB), (iE, X_BodyE) = self.frames
-        X_WE = poses[iE].GetAsMatrix4() @ X_BodyE
-        X_BE = inverse(poses[iB].GetAsMatrix4() @ X_BodyB) @ X_WE
-        return pose_to_vector(X_WE), X_WE, X_BE
+        return kernels.hand_poses(poses[iE].GetAsMatrix4(), X_BodyE,
+                                  poses[iB].GetAsMatrix4(), X_BodyB)
 
 
 def _per_actuator(value, name: str, n: int) -> np.ndarray:

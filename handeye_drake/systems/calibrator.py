@@ -21,7 +21,8 @@ of the design.
 
 Timing: both pose inputs must be sampled at the same instants (the camera trigger). In the
 closed-loop diagram the robot pose goes through a ``ZeroOrderHold`` clocked with the camera, and
-this system updates half a period after the trigger (``offset``), when both hold that trigger's
+this system updates ``offset`` after the trigger (half a period by default; the closed loop uses
+the arm driver's step, a time the simulator steps to anyway), when both hold that trigger's
 sample.
 """
 
@@ -30,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from ..estimation import kernels
 from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
 from ..estimation.solvers import METHODS as SOLVER_METHODS
 from ..estimation.startup import estimator_type, start_estimator, two_motion_estimate
@@ -281,14 +283,13 @@ class HandEyeCalibrator(LeafSystem):
     def _OutputValues(e, mode) -> dict:
         """The outputs' values for estimator ``e`` in ``mode``."""
         nis = e.last_nis if np.isfinite(e.last_nis) else -1.0
-        X_CE = e._X_CE_hat()
-        cov = e.X_EC_covariance  # (once; as X_EC_rotation_std_deg / X_EC_translation_std)
-        variances = np.maximum(np.diag(cov), 0.0)
-        return {"X_CE_estimate": pose_to_vector(X_CE),
-                "X_EC_estimate": pose_to_vector(inverse(X_CE)),
-                "X_EC_std": np.concatenate([np.degrees(np.sqrt(variances[:3])),
-                                            np.sqrt(variances[3:])]),
-                "X_EC_covariance": cov.reshape(36),
+        # pose_to_vector of X_CE and of its inverse, X_EC_covariance, and from its diagonal
+        # X_EC_rotation_std_deg / X_EC_translation_std — compiled, as one call.
+        x_CE, x_EC, std, cov = kernels.estimate_outputs(
+            np.ascontiguousarray(e._X_CE_hat(), dtype=float),
+            np.ascontiguousarray(e.X_CE_covariance, dtype=float))
+        return {"X_CE_estimate": x_CE, "X_EC_estimate": x_EC, "X_EC_std": std,
+                "X_EC_covariance": cov,
                 "status": np.array([mode, e.num_updates, e.num_rejected, nis], dtype=float)}
 
     def _Collect(self, context, discrete_state, sample):

@@ -10,7 +10,8 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import inverse, pose_to_vector, rotation_exp, vector_to_pose
+from ..estimation import kernels
+from ..estimation.se3 import pose_to_vector, vector_to_pose
 from ..estimation.validation import (
     ROTATION_TOLERANCE,
     as_matrix,
@@ -28,6 +29,7 @@ from ..vision.camera_model import (
 from .arm import EndEffectorPoseInput
 
 _IDENTITY_POSE = pose_to_vector(np.eye(4))
+_NO_NOISE = np.zeros(0)  # (the kernel does not read the noise of a zero sigma)
 
 
 class HandEyeCamera(LeafSystem):
@@ -93,8 +95,10 @@ class HandEyeCamera(LeafSystem):
         self._translation_sigma = check_positive(translation_sigma, "translation_sigma",
                                                  allow_zero=True)
         n = self._p_TQ.shape[0]
-        self._K2 = intrinsics.K[:2, :2]
-        self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
+        # (contiguous float arrays: what the compiled kernel takes)
+        self._K2 = np.ascontiguousarray(intrinsics.K[:2, :2], dtype=float)
+        self._principal_point = np.array([intrinsics.u0, intrinsics.v0], dtype=float)
+        self._p_TQ = np.ascontiguousarray(self._p_TQ, dtype=float)
 
         self._ee_input = EndEffectorPoseInput(self, plant, base_frame_name, ee_frame_name)
         self._X_WE_port, self._frames = self._ee_input.port, self._ee_input.frames
@@ -192,7 +196,8 @@ class HandEyeCamera(LeafSystem):
 
     def _UpdateImage(self, context, discrete_state):
         # The per-sample path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
-        # the settings checked once in the constructor (tests check it equals them exactly).
+        # the settings checked once in the constructor, compiled (``kernels.camera_sample``;
+        # tests check it equals them to rounding).
         x, X_WE_plant, X_BE = self._ee_input.Eval(context)
         if not np.isfinite(x).all():
             raise ValueError(f"X_WE input of {self.get_name()!r}: contains NaN or infinite "
@@ -201,49 +206,20 @@ class HandEyeCamera(LeafSystem):
         if not _is_rotation(x):
             raise ValueError(f"X_WE input of {self.get_name()!r}: rotation block is not a "
                              f"rotation matrix at t = {context.get_time()}: {x[:9].tolist()}")
-        X_WC = X_WE @ self._X_EC
-        X_CT = inverse(X_WC) @ self._X_WT
-        p_CQ = self._p_TQ @ X_CT[:3, :3].T + X_CT[:3, 3]
-        uv, in_image = self._project(p_CQ)
-
-        if self._pixel_sigma > 0:
-            noise = self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
-            if in_image.all():  # (the usual case: no boolean indexing)
-                uv += self._pixel_sigma * noise.reshape(-1, 2)
-            else:
-                uv[in_image] += self._pixel_sigma * noise.reshape(-1, 2)[in_image]
-        if self._rotation_sigma > 0 or self._translation_sigma > 0:
-            noise = self._EvalNoise(self._pose_noise_port, context, 12)
-            X_CT_measured = X_CT.copy()
-            if self._pose_noise_model == "paper":
-                X_CT_measured[:3, :3] = X_CT[:3, :3] + self._rotation_sigma * noise[:9].reshape(3, 3)
-            else:
-                X_CT_measured[:3, :3] = rotation_exp(self._rotation_sigma * noise[:3]) \
-                    @ X_CT[:3, :3]
-            X_CT_measured[:3, 3] = X_CT[:3, 3] + self._translation_sigma * noise[9:12]
-        else:
-            X_CT_measured = X_CT
-
-        discrete_state.set_value(self._features_index, uv.reshape(-1))
-        discrete_state.set_value(self._visible_index, in_image.astype(float))
-        discrete_state.set_value(self._X_CT_index, pose_to_vector(X_CT_measured))
-        discrete_state.set_value(self._X_WC_index, pose_to_vector(X_WC))
+        pixel_noise = (self._EvalNoise(self._pixel_noise_port, context, 2 * self.num_points)
+                       if self._pixel_sigma > 0 else _NO_NOISE)
+        pose_noise = (self._EvalNoise(self._pose_noise_port, context, 12)
+                      if self._rotation_sigma > 0 or self._translation_sigma > 0 else _NO_NOISE)
+        uv, visible, x_CT, x_WC = kernels.camera_sample(
+            X_WE, self._X_EC, self._X_WT, self._p_TQ, self._K2, self._principal_point,
+            float(self._intrinsics.width), float(self._intrinsics.height), MIN_DEPTH,
+            self._pixel_sigma, pixel_noise, self._rotation_sigma, self._translation_sigma,
+            self._pose_noise_model == "paper", pose_noise)
+        discrete_state.set_value(self._features_index, uv)
+        discrete_state.set_value(self._visible_index, visible)
+        discrete_state.set_value(self._X_CT_index, x_CT)
+        discrete_state.set_value(self._X_WC_index, x_WC)
         discrete_state.set_value(self._X_BE_index, x if X_BE is None else pose_to_vector(X_BE))
-
-    def _project(self, p_CQ):
-        """``project_points(p_CQ, intrinsics, MIN_DEPTH)`` without its checks: (uv, in_image)."""
-        Z = p_CQ[:, 2]
-        in_front = Z > MIN_DEPTH
-        if in_front.all():  # (the usual case: no boolean indexing)
-            uv = (p_CQ[:, :2] / Z[:, None]) @ self._K2.T + self._principal_point
-        else:
-            uv = np.zeros((p_CQ.shape[0], 2))
-        if in_front.any() and not in_front.all():
-            xy = p_CQ[in_front, :2] / Z[in_front, None]
-            uv[in_front] = xy @ self._K2.T + self._principal_point
-        in_image = (in_front & (uv[:, 0] >= 0) & (uv[:, 0] < self._intrinsics.width)
-                    & (uv[:, 1] >= 0) & (uv[:, 1] < self._intrinsics.height))
-        return uv, in_image
 
     def _EvalNoise(self, port, context, size):
         if not port.HasValue(context):

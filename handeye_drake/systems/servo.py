@@ -13,7 +13,8 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation.se3 import pose_to_vector, skew
+from ..estimation import kernels
+from ..estimation.se3 import pose_to_vector
 from ..estimation.validation import as_matrix, as_transform, check_positive, rotation_defect
 from ..vision.camera_model import (
     MIN_DEPTH,
@@ -43,6 +44,8 @@ STATUS_INVALID_ESTIMATE = 2
 #: max(‖RᵀR − I‖_F, |det R − 1|) above which the hand-eye estimate is refused (STATUS 2). Loose on
 #: purpose: a slightly non-orthonormal estimate still gives a usable interaction matrix.
 ESTIMATE_ROTATION_TOLERANCE = 0.25
+
+_ZERO_TWIST = np.zeros(6)
 
 
 class VisualServoController(LeafSystem):
@@ -116,8 +119,10 @@ class VisualServoController(LeafSystem):
                                   "desired_features", (2 * n,))
         self._gain = check_positive(gain, "gain")
         self._desired_uv = self._desired.reshape(n, 2)
-        self._K2 = intrinsics.K[:2, :2]
-        self._principal_point = np.array([intrinsics.u0, intrinsics.v0])
+        # (contiguous float arrays: what the compiled kernels take)
+        self._K2 = np.ascontiguousarray(intrinsics.K[:2, :2], dtype=float)
+        self._principal_point = np.array([intrinsics.u0, intrinsics.v0], dtype=float)
+        self._p_TQ = np.ascontiguousarray(self._p_TQ, dtype=float)
         self._period = check_positive(period, "period")
         self._max_w = self._check_speed_limit(max_angular_speed, "max_angular_speed")
         self._max_v = self._check_speed_limit(max_linear_speed, "max_linear_speed")
@@ -244,23 +249,17 @@ class VisualServoController(LeafSystem):
         return len(self._motions)
 
     def _UpdateCommand(self, context, discrete_state):
-        n = self._p_TQ.shape[0]
         features = self._EvalFinite(self._features_port, context)
-        visible = self._EvalFinite(self._visible_port, context) > 0.5
+        visible = self._EvalFinite(self._visible_port, context)
         x_CT = self._EvalFinite(self._X_CT_port, context)
-        Z = (self._p_TQ @ x_CT[:9].reshape(3, 3).T + x_CT[9:12])[:, 2]
-        usable = visible & (Z > MIN_DEPTH)
-        n_usable = int(usable.sum())
-
-        error = (features - self._desired).reshape(n, 2)[usable]
-        if n_usable > 0:
-            feature_error = float(np.sqrt(np.mean(np.sum(error ** 2, axis=1))))
-        else:  # nothing to measure: keep the last value, status says why
+        Z, usable, n_usable, feature_error = kernels.servo_errors(
+            features, visible, x_CT, self._p_TQ, self._desired, MIN_DEPTH)
+        if n_usable == 0:  # nothing to measure: keep the last value, status says why
             feature_error = float(context.get_discrete_state(self._error_index).get_value()[0])
         status = STATUS_OK if n_usable >= self._min_visible else STATUS_TOO_FEW_VISIBLE
 
         phase = self.phase_at(context.get_time())
-        command = np.zeros(6)
+        command = _ZERO_TWIST
         if phase < len(self._motions):
             command = self._motion_twists[phase]
         elif status == STATUS_OK:
@@ -268,7 +267,7 @@ class VisualServoController(LeafSystem):
             if not _is_estimate_rotation(x_CE):
                 status = STATUS_INVALID_ESTIMATE
             else:
-                command = self._ServoTwist(features.reshape(n, 2), Z, x_CE, usable)
+                command = self._ServoTwist(features, Z, x_CE, usable)
 
         discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
         discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
@@ -277,55 +276,30 @@ class VisualServoController(LeafSystem):
         # The desired pose reached at the end of the elapsed command period becomes X_k.
         t = context.get_time()
         R, p = self._DesiredPose(context, t, orthonormalize=True)
-        discrete_state.set_value(self._pose_index, np.concatenate([R.reshape(9), p, [t],
-                                                                   command]))
+        state = np.empty(19)
+        state[:9], state[9:12], state[12], state[13:] = R.reshape(9), p, t, command
+        discrete_state.set_value(self._pose_index, state)
 
     def _DesiredPose(self, context, t, orthonormalize: bool = False):
         """(R (3×3), p) of X_k · exp(V_k (t − t_k)): E's pose under the constant body twist
-        V_k."""
+        V_k (``kernels.twist_motion``)."""
         x = context.get_discrete_state(self._pose_index).get_value()
-        values = x.tolist()  # Python floats: same products as numpy's, less overhead
-        s = t - values[12]
-        V = values[13:]
-        if s == 0.0 or not any(V):
+        s = t - x[12]
+        if s == 0.0 or not x[13:].any():
             return x[:9].reshape(3, 3), x[9:12]
-        R, p = _twist_motion(values, [s * v for v in V], orthonormalize)
-        return np.array(R), np.array(p)
+        return kernels.twist_motion(x, s, orthonormalize)
 
     def _CalcDesiredPose(self, context, output) -> None:
         R, p = self._DesiredPose(context, context.get_time())
         output.set_value(RigidTransform(RotationMatrix(R), p))
 
-    def _ServoTwist(self, uv, Z, x_CE, usable) -> np.ndarray:
-        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` (X_CE as
-        the pose vector x_CE) without
-        the per-call checks of its arguments (checked once, in the constructor, or just above):
-        the same arithmetic, step by step (tests check they are equal)."""
-        uv_m = uv[usable]
-        xy = np.linalg.solve(self._K2, (uv_m - self._principal_point).T).T
-        x, y, z = xy[:, 0], xy[:, 1], Z[usable]
-        # Each point's 2×6 block of the normalized interaction matrix, stacked (N, 2, 6).
-        M = np.zeros((len(uv_m), 2, 6))
-        M[:, 0, 0], M[:, 0, 1], M[:, 0, 2] = x * y, -(1.0 + x * x), y
-        M[:, 0, 3], M[:, 0, 5] = -1.0 / z, x / z
-        M[:, 1, 0], M[:, 1, 1], M[:, 1, 2] = 1.0 + y * y, -x * y, -x
-        M[:, 1, 4], M[:, 1, 5] = -1.0 / z, y / z
-        # twist_transform(X_CE) from the pose vector: [[R, 0], [[p]× R, R]].
-        R, p = x_CE[:9].reshape(3, 3), x_CE[9:12]
-        T = np.zeros((6, 6))
-        T[:3, :3] = R
-        T[3:, 3:] = R
-        T[3:, :3] = skew(p) @ R
-        L = (self._K2 @ M).reshape(-1, 6) @ T
-        error = (uv_m - self._desired_uv[usable]).reshape(-1)
-        V = -self._gain * (np.linalg.pinv(L, rcond=1e-10) @ error)
-        scale = 1.0
-        w, v = np.linalg.norm(V[:3]), np.linalg.norm(V[3:])
-        if w > self._max_w:
-            scale = min(scale, self._max_w / w)
-        if v > self._max_v:
-            scale = min(scale, self._max_v / v)
-        return scale * V
+    def _ServoTwist(self, features, Z, x_CE, usable) -> np.ndarray:
+        """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` (pixels
+        ``features`` (2N), X_CE as the pose vector x_CE) without the per-call checks of its
+        arguments (checked once, in the constructor, or just above): the same formulas, compiled
+        (``kernels.servo_twist``; tests check they agree to rounding)."""
+        return kernels.servo_twist(features, Z, usable, x_CE, self._K2, self._principal_point,
+                                   self._desired, self._gain, self._max_w, self._max_v)
 
     def _EvalFinite(self, port, context):
         value = port.Eval(context)  # (a new array)
@@ -348,47 +322,3 @@ def _is_estimate_rotation(x) -> bool:
     if frob2 <= tol * tol and abs(det - 1.0) <= tol:
         return True
     return rotation_defect(np.reshape(x[:9], (3, 3))) <= ESTIMATE_ROTATION_TOLERANCE
-
-
-def _twist_motion(x, sV, orthonormalize: bool):
-    """([R row-major], [p]) of X0 · exp([a; b]): the pose X0 = x ([vec_row(R0); p0], a list)
-    moved by the body twist [ω; v] held for s seconds, sV = [a; b] = [ω s (rad); v s (m)]
-    expressed in the moving frame — the SE(3) exponential, R = R0 exp([a]×) and
-    p = p0 + R0 J(a) b, J the left Jacobian of SO(3). On Python floats (3×3 numpy calls cost
-    more than the arithmetic). ``orthonormalize``: one Newton step R ← R (3I − RᵀR) / 2, so a
-    pose integrated over many periods stays a rotation to rounding."""
-    ax, ay, az, bx, by, bz = sV
-    th2 = ax * ax + ay * ay + az * az
-    if th2 < 1e-8:  # Taylor series: the terms dropped are below 1e-17
-        A, B, C = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
-    else:
-        th = math.sqrt(th2)
-        A, B = math.sin(th) / th, (1.0 - math.cos(th)) / th2
-        C = (1.0 - A) / th2
-    # exp([a]×) = I + A [a]× + B [a]×², with [a]×² = a aᵀ − θ² I.
-    d = 1.0 - B * th2
-    E = ((d + B * ax * ax, B * ax * ay - A * az, B * ax * az + A * ay),
-         (B * ay * ax + A * az, d + B * ay * ay, B * ay * az - A * ax),
-         (B * az * ax - A * ay, B * az * ay + A * ax, d + B * az * az))
-    # J b = b + B a × b + C a × (a × b)
-    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    ex, ey, ez = ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx
-    j = (bx + B * cx + C * ex, by + B * cy + C * ey, bz + B * cz + C * ez)
-    # R = R0 E and p = p0 + R0 J b, written out (the same products and sums, in the same order,
-    # as row-by-column loops: a third of the cost; this runs three times a camera period).
-    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = E
-    j0, j1, j2 = j
-    r00, r01, r02, r10, r11, r12, r20, r21, r22, p0, p1, p2 = x[:12]
-    R = [[r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21,
-          r00 * e02 + r01 * e12 + r02 * e22],
-         [r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21,
-          r10 * e02 + r11 * e12 + r12 * e22],
-         [r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21,
-          r20 * e02 + r21 * e12 + r22 * e22]]
-    p = [p0 + r00 * j0 + r01 * j1 + r02 * j2, p1 + r10 * j0 + r11 * j1 + r12 * j2,
-         p2 + r20 * j0 + r21 * j1 + r22 * j2]
-    if orthonormalize:
-        G = [[sum(R[m][i] * R[m][k] for m in range(3)) for k in range(3)] for i in range(3)]
-        R = [[sum(r[m] * ((1.5 if m == k else 0.0) - 0.5 * G[m][k]) for m in range(3))
-              for k in range(3)] for r in R]
-    return R, p

@@ -360,8 +360,8 @@ def test_end_effector_matrix_is_what_the_servo_inverts():
 
 @pytest.mark.parametrize("visible", [[1, 1, 1, 1, 1], [1, 0, 1, 1, 1]])
 def test_per_sample_law_equals_ibvs_twist_and_saturation(visible):
-    """The servo's update inlines ibvs_twist + saturate_twist (no per-sample checks of the
-    arguments): exactly their result, saturated or not."""
+    """The servo's update compiles ibvs_twist + saturate_twist (no per-sample checks of the
+    arguments): their result to rounding, saturated or not."""
     from handeye_drake.vision import saturate_twist
     uv, Z, X_CT = measure(X_WE_START)
     uv = uv + np.random.default_rng(3).normal(scale=2.0, size=uv.shape)
@@ -371,5 +371,6 @@ def test_per_sample_law_equals_ibvs_twist_and_saturation(visible):
                                       max_angular_speed=max_w, max_linear_speed=max_v)
         expected = saturate_twist(ibvs_twist(uv, UV_STAR, Z, CAM, X_CE, 0.7, visible=usable),
                                   max_w, max_v)
-        np.testing.assert_array_equal(servo._ServoTwist(uv, Z, pose_to_vector(X_CE), usable),
-                                      expected)
+        ours = servo._ServoTwist(uv.reshape(-1), Z, pose_to_vector(X_CE), usable)
+        np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=1e-15)
+        assert np.max(np.abs(ours - expected)) <= 1e-12 * np.max(np.abs(expected))
