@@ -185,3 +185,26 @@ duration: 6.0
     assert r.calibrator_mode == STATUS_INIT_FAILED
     assert not r.summary()["two_motion_solution_found"]
     assert any("two-motion solution failed" in d for d in r.diagnostics)
+
+
+def test_calibrator_updates_on_a_driver_step_with_the_same_results(default_run, monkeypatch):
+    """The loop's calibrator updates at the driver's first step after each trigger (no
+    simulator step of its own); any instant between two triggers reads the same held sample,
+    so its class default (half a period) gives the very same run."""
+    from handeye_drake.simulation import DRIVER_STEPS_PER_PERIOD
+    from handeye_drake.systems import calibrator as calibrator_module
+
+    scenario = load_scenario()
+    assert build_diagram(scenario).calibrator._offset == pytest.approx(
+        scenario.period / DRIVER_STEPS_PER_PERIOD)
+    original = calibrator_module.HandEyeCalibrator.__init__
+
+    def class_default(self, *args, **kwargs):
+        kwargs.pop("offset", None)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(calibrator_module.HandEyeCalibrator, "__init__", class_default)
+    assert build_diagram(scenario).calibrator._offset == pytest.approx(0.5 * scenario.period)
+    half = run_scenario(scenario)
+    for name in ("X_EC_estimates", "X_EC_std", "calibrator_status", "features", "X_WC"):
+        np.testing.assert_array_equal(getattr(half, name), getattr(default_run, name))

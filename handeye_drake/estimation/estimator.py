@@ -151,7 +151,8 @@ class EstimatorBase:
     def _copy(self):
         """An independent copy, cheaply: updates assign new arrays to the estimator's attributes
         and never change an array in place — except the excitation sum, copied here."""
-        other = copy.copy(self)
+        other = object.__new__(type(self))  # (copy.copy's result, without its protocol)
+        other.__dict__.update(self.__dict__)
         other._excitation = Excitation(self._excitation.S)
         return other
 

@@ -124,10 +124,14 @@ def project_to_rotation(M):
         c10, c11, c12 = c * h - b * i, a * i - c * g, b * g - a * h
         c20, c21, c22 = b * f - c * e, c * d - a * f, a * e - b * d
         # X⁻ᵀ = cofactor matrix / det
+        C = np.empty((3, 3))
+        C[0, 0], C[0, 1], C[0, 2] = c00, c01, c02
+        C[1, 0], C[1, 1], C[1, 2] = c10, c11, c12
+        C[2, 0], C[2, 1], C[2, 2] = c20, c21, c22
         Y = np.empty((3, 3))
-        Y[0, 0], Y[0, 1], Y[0, 2] = 0.5 * (a + c00 / det), 0.5 * (b + c01 / det), 0.5 * (c + c02 / det)
-        Y[1, 0], Y[1, 1], Y[1, 2] = 0.5 * (d + c10 / det), 0.5 * (e + c11 / det), 0.5 * (f + c12 / det)
-        Y[2, 0], Y[2, 1], Y[2, 2] = 0.5 * (g + c20 / det), 0.5 * (h + c21 / det), 0.5 * (i + c22 / det)
+        for r in range(3):
+            for k in range(3):
+                Y[r, k] = 0.5 * (X[r, k] + C[r, k] / det)
         step = 0.0
         for r in range(3):
             for k in range(3):
@@ -477,3 +481,34 @@ def camera_sample(X_WE, X_EC, X_WT, p_TQ, K2, principal_point, width, height, mi
             x_WC[3 * i + j] = X_WC[i, j]
         x_WC[9 + i] = X_WC[i, 3]
     return uv, visible, x_CT, x_WC
+
+
+@njit(**_CACHE)
+def sample_poses(x_BE, x_CT):
+    """(X_BE, X_CT, all finite) of a synchronized sample's two pose vectors [vec_row(R); p]
+    (se3.vector_to_pose of each)."""
+    X_BE, X_CT = np.empty((4, 4)), np.empty((4, 4))
+    finite = True
+    for X, x in ((X_BE, x_BE), (X_CT, x_CT)):
+        for i in range(3):
+            for j in range(3):
+                X[i, j] = x[3 * i + j]
+            X[i, 3] = x[9 + i]
+            X[3, i] = 0.0
+        X[3, 3] = 1.0
+        for k in range(12):
+            finite = finite and math.isfinite(x[k])
+    return X_BE, X_CT, finite
+
+
+@njit(**_CACHE)
+def rotation_between(R0, R1):
+    """(φ, ok) with R1 = R0 exp([φ]×) (estimator.rotation_vector_between); ok False when R0ᵀR1
+    is not a rotation to scipy's tolerance (the caller takes the general path)."""
+    M = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = R0[0, i] * R1[0, j] + R0[1, i] * R1[1, j] + R0[2, i] * R1[2, j]
+    if not is_orthonormal(M):
+        return np.zeros(3), False
+    return rotation_log(M), True

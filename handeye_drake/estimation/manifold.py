@@ -280,10 +280,12 @@ class _ErrorStateFilter(EstimatorBase):
             self._num_rejected += 1
             self._consecutive += 1
             return False
-        parts = est if isinstance(est, tuple) else (est,)
         # (a sum is NaN or infinite when any entry is, or when it overflows: far beyond any
         # pose or covariance an update can meaningfully reach)
-        if not math.isfinite(sum(float(v.sum()) for v in parts) + float(P.sum())):
+        total = float(P.sum())
+        for v in (est if isinstance(est, tuple) else (est,)):
+            total += float(v.sum())
+        if not math.isfinite(total):
             raise ValueError("the update produced a non-finite estimate; state left unchanged")
         self._estimate, self._P = est, P
         self._num_updates += 1
@@ -506,9 +508,10 @@ class HandEyeTargetFilter(_ErrorStateFilter):
         if fused:
             if self._R_BE_ref is None:  # X_BT_init given: no placing sample
                 self._R_BE_ref = X_BE[:3, :3].copy()
-            M = self._R_BE_ref.T @ X_BE[:3, :3]
-            self._excitation.add(kernels.rotation_log(M) if kernels.is_orthonormal(M)
-                                 else rotation_vector_between(self._R_BE_ref, X_BE[:3, :3]))
+            R_BE = np.ascontiguousarray(X_BE[:3, :3])
+            phi, ok = kernels.rotation_between(self._R_BE_ref, R_BE)
+            self._excitation.add(phi if ok else rotation_vector_between(self._R_BE_ref,
+                                                                        X_BE[:3, :3]))
         return fused
 
     def _X_CE_hat(self) -> np.ndarray:

@@ -254,10 +254,10 @@ class HandEyeCalibrator(LeafSystem):
             return  # no measurement at this instant (e.g. the target was not detected)
         X_BE_vec = self._X_BE_port.Eval(context)
         X_CT_vec = self._X_CT_port.Eval(context)
-        if not (np.isfinite(X_BE_vec).all() and np.isfinite(X_CT_vec).all()):
+        X_BE, X_CT, finite = kernels.sample_poses(X_BE_vec, X_CT_vec)
+        if not finite:
             raise ValueError(f"HandEyeCalibrator at t={context.get_time():.4f}: non-finite pose "
                              "on the X_BE or X_CT_measured input")
-        X_BE, X_CT = vector_to_pose(X_BE_vec), vector_to_pose(X_CT_vec)
         mode = context.get_discrete_state(self._mode_index).get_value()[0]
         if mode == STATUS_COLLECTING:
             self._Collect(context, discrete_state, np.concatenate([X_BE_vec, X_CT_vec]))

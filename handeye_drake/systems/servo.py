@@ -291,7 +291,9 @@ class VisualServoController(LeafSystem):
 
     def _CalcDesiredPose(self, context, output) -> None:
         R, p = self._DesiredPose(context, context.get_time())
-        output.set_value(RigidTransform(RotationMatrix(R), p))
+        # In place (half the cost of a new RigidTransform); RotationMatrix(R) does not check R
+        # in Drake's release builds either.
+        output.get_mutable_value().set(RotationMatrix.MakeUnchecked(R), p)
 
     def _ServoTwist(self, features, Z, x_CE, usable) -> np.ndarray:
         """``saturate_twist(ibvs_twist(uv, s*, Z, K, X_CE, gain, visible=usable), ...)`` (pixels
