@@ -22,7 +22,6 @@ the axes of the frame the pose is expressed in) and t = t̂ + δt (m).
 
 from __future__ import annotations
 
-import copy
 import math
 from typing import Protocol
 
