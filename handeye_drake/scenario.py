@@ -284,8 +284,11 @@ class Scenario:
     #: Simulated time (s).
     duration: float = 12.0
     simulator_config: SimulatorConfig = field(default_factory=SimulatorConfig)
+    #: Drake's plant settings; the default is ``systems.arm.DEFAULT_PLANT_CONFIG`` (2 ms, live
+    #: output ports: see there why).
     plant_config: MultibodyPlantConfig = field(
-        default_factory=lambda: MultibodyPlantConfig(time_step=0.002))
+        default_factory=lambda: MultibodyPlantConfig(time_step=0.002,
+                                                     use_sampled_output_ports=False))
     arm: ArmConfig = field(default_factory=ArmConfig)
     camera: CameraSettings = field(default_factory=CameraSettings)
     target: TargetConfig = field(default_factory=TargetConfig)

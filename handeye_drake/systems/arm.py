@@ -72,8 +72,13 @@ UR5E_HOME_Q = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
 DEFAULT_KP = 1.0e5
 DEFAULT_KD = 2.0e3
 
-#: The arm's plant: discrete (SAP applies the PD gains implicitly), 2 ms.
-DEFAULT_PLANT_CONFIG = MultibodyPlantConfig(time_step=0.002)
+#: The arm's plant: discrete (SAP applies the PD gains implicitly), 2 ms, with live output ports.
+#: Sampled ports (Drake's default) make each plant step an unrestricted update, after which the
+#: simulator asks every system for its witness functions again: through pybind11 for each
+#: Python system, at each 2 ms step. The ports read here (state, body poses) are kinematic and
+#: live in either mode; live ports also make the plant's step a discrete update computed
+#: simultaneously with the camera's, so a sample at a step time sees the state at that time.
+DEFAULT_PLANT_CONFIG = MultibodyPlantConfig(time_step=0.002, use_sampled_output_ports=False)
 
 _STATUS_SOLUTION_FOUND = float(int(DifferentialInverseKinematicsStatus.kSolutionFound))
 _STATUS_NO_SOLUTION = float(int(DifferentialInverseKinematicsStatus.kNoSolutionFound))
