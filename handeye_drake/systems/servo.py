@@ -290,7 +290,11 @@ class VisualServoController(LeafSystem):
         return kernels.twist_motion(x, s, orthonormalize)
 
     def _CalcDesiredPose(self, context, output) -> None:
-        R, p = self._DesiredPose(context, context.get_time())
+        # _DesiredPose without its zero-twist test: the kernel's exp of a zero twist is the
+        # identity exactly, so it returns X_k's R and p unchanged (three calls a period).
+        x = context.get_discrete_state(self._pose_index).get_value()
+        s = context.get_time() - x[12]
+        R, p = (x[:9].reshape(3, 3), x[9:12]) if s == 0.0 else kernels.twist_motion(x, s, False)
         # In place (half the cost of a new RigidTransform); RotationMatrix(R) does not check R
         # in Drake's release builds either.
         output.get_mutable_value().set(RotationMatrix.MakeUnchecked(R), p)
