@@ -208,3 +208,29 @@ def test_calibrator_updates_on_a_driver_step_with_the_same_results(default_run, 
     half = run_scenario(scenario)
     for name in ("X_EC_estimates", "X_EC_std", "calibrator_status", "features", "X_WC"):
         np.testing.assert_array_equal(getattr(half, name), getattr(default_run, name))
+
+
+def test_the_plant_steps_by_discrete_updates_with_live_output_ports():
+    """The arm's plant reports its ports live (no sampling state): its 2 ms step is a discrete
+    update, not an unrestricted one after which the simulator would ask every (Python) system
+    for its witness functions again. The only unrestricted updates left are the noise sources'
+    (one per camera sample each); the scenario's default is the arm's."""
+    from pydrake.common import RandomGenerator
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from handeye_drake.systems.arm import DEFAULT_PLANT_CONFIG
+
+    scenario = load_scenario()
+    assert scenario.plant_config.use_sampled_output_ports is False
+    assert DEFAULT_PLANT_CONFIG.use_sampled_output_ports is False
+    assert scenario.plant_config.time_step == DEFAULT_PLANT_CONFIG.time_step
+    scenario.duration = 1.0
+    built = build_diagram(scenario, with_loggers=False)
+    simulator = Simulator(built.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    built.diagram.SetRandomContext(simulator.get_mutable_context(), RandomGenerator(0))
+    simulator.AdvanceTo(scenario.duration)
+    plant_steps = round(scenario.duration / scenario.plant_config.time_step)
+    camera_samples = round(scenario.duration / scenario.period)
+    assert simulator.get_num_discrete_updates() >= plant_steps
+    assert simulator.get_num_unrestricted_updates() <= camera_samples + 1

@@ -688,8 +688,9 @@ def loop_section(repeats: int, log=print) -> list[dict]:
     twist = load_scenario()
     twist.arm.driver = TwistCommand()
     diagram, ik, plant, q0 = arm_reference_diagram(scenario)
-    # The loop's own Python systems (camera, servo, calibrator): each costs the simulator time
-    # at every step even when idle; the reference with as many idle ones shows that cost.
+    # The loop's own Python systems (camera, servo, calibrator): what being in the diagram costs
+    # each (with a sampled-port plant, a pybind11 witness query at every step; with live ports,
+    # the default, about nothing); the reference with as many idle ones shows it.
     python_systems = [sys_ for sys_ in build_diagram(scenario, with_loggers=False).diagram
                       .GetSystems() if type(sys_).__module__.startswith("handeye_drake")]
     idle = arm_reference_diagram(scenario, idle_python_systems=len(python_systems))
