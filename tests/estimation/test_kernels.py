@@ -95,6 +95,17 @@ def test_twist_motion_is_the_se3_exponential(orthonormalize):
         np.testing.assert_allclose(p, expected[:3, 3], atol=1e-13)
 
 
+
+def test_twist_motion_of_a_zero_twist_is_the_start_pose_bit_for_bit():
+    """The servo's commanded pose skips its zero-twist test on this: exp(0 · s) is the identity
+    exactly, so X0 comes back unchanged at any s."""
+    rng = np.random.default_rng(6)
+    for s in (1e-9, 0.0111, 0.0333, 5.0):
+        x = np.concatenate([pose_to_vector(random_pose(rng)), [1.0], np.zeros(6)])
+        R, p = kernels.twist_motion(x, s, False)
+        np.testing.assert_array_equal(R.reshape(9), x[:9])
+        np.testing.assert_array_equal(p, x[9:12])
+
 def test_servo_errors_depths_and_usable_points():
     rng = np.random.default_rng(5)
     X_CT = make_transform(rotation_exp([0.1, -0.05, 0.02]), [0.0, 0.0, 0.5])
