@@ -195,6 +195,20 @@ def _not_yet(text: str) -> bool:
     return any(k in text for k in _NOT_YET)
 
 
+def _mid_write_errors() -> tuple:
+    """What SQLite raises when a read meets a transaction the recorder is writing: a page not
+    yet consistent ("database disk image is malformed"), a lock. A follower retries at the next
+    poll (a bag that stays unreadable ends the session at its timeout, with this error)."""
+    import sqlite3
+    errors = [sqlite3.DatabaseError]
+    try:
+        import apsw  # rosbags' SQLite driver
+        errors += [apsw.CorruptError, apsw.BusyError, apsw.LockedError]
+    except ImportError:
+        pass
+    return tuple(errors)
+
+
 class BagFollower:
     """Polls a (growing) bag for new samples (module docstring).
 
@@ -285,6 +299,10 @@ class BagFollower:
                 self.waiting, self.last_error = True, text   # mid-write: next poll
                 return []
             raise
+        except _mid_write_errors() as e:
+            self.waiting = True
+            self.last_error = f"{self.path}: unreadable while being written ({e}); retrying"
+            return []
         interp = None
         if robot is not None and len(robot.poses):
             interp = PoseInterpolator(robot.timestamps, robot.poses)

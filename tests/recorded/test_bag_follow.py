@@ -109,6 +109,31 @@ def test_follower_pairs_camera_stamps_with_the_robot_pose(tmp_path):
     assert [round(s["stamp"], 3) for s in got] == [round(0.13 + 0.1 * k, 3) for k in range(6)]
 
 
+
+def test_a_read_that_meets_a_transaction_being_written_is_retried(tmp_path, monkeypatch):
+    """SQLite can report a page the recorder is writing as corrupt ("database disk image is
+    malformed"): the poll returns nothing, says it is waiting and why, and the next poll reads."""
+    import apsw
+
+    from handeye_drake.recorded import bags
+
+    path = tmp_path / "bag"
+    rec = Recorder(path, "sqlite3", n=4, gap_s=0.0)
+    rec.run()
+    f = BagFollower(path, "base_link:tool0", camera_topic="/camera/target_pose")
+    original, calls = bags._read, []
+
+    def torn_once(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:
+            raise apsw.CorruptError("database disk image is malformed")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(bags, "_read", torn_once)
+    assert f.poll() == [] and f.waiting
+    assert "unreadable while being written" in f.last_error and "malformed" in f.last_error
+    assert len(f.poll()) == 4 and not f.waiting
+
 def test_bag_bad_inputs_are_one_line(tmp_path, capsys):
     path = tmp_path / "bag"
     Recorder(path, "sqlite3", n=3, gap_s=0.0).run()
