@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import gc
 import statistics
-import time
 
 
 def main(argv=None) -> int:
@@ -29,9 +28,12 @@ def main(argv=None) -> int:
     if args.repeats < 1:
         parser.error(f"--repeats: must be ≥ 1, got {args.repeats}")
 
-    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-
-    from handeye_drake.apps.speed import arm_reference_diagram, load_average, pin_blas_threads
+    from handeye_drake.apps.speed import (
+        arm_reference_diagram,
+        load_average,
+        pin_blas_threads,
+        simulate_reference,
+    )
     from handeye_drake.scenario import load_scenario
     from handeye_drake.simulation import run_scenario
 
@@ -39,16 +41,7 @@ def main(argv=None) -> int:
 
     def reference(scenario):
         diagram, ik, _, q0 = arm_reference_diagram(scenario)
-
-        def run():
-            simulator = Simulator(diagram)
-            ApplySimulatorConfig(scenario.simulator_config, simulator)
-            ik.SetPositions(ik.GetMyMutableContextFromRoot(simulator.get_mutable_context()), q0)
-            start = time.perf_counter()
-            simulator.Initialize()
-            simulator.AdvanceTo(scenario.duration)
-            return time.perf_counter() - start
-        return run
+        return lambda: simulate_reference(scenario, diagram, ik, q0)[0]
 
     runners = {}
     for sampled in (True, False):

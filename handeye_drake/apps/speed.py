@@ -577,6 +577,22 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
     return builder.Build(), ik, handles.plant, q0
 
 
+
+def simulate_reference(scenario, diagram, integrator, q0):
+    """Simulates an ``arm_reference_diagram`` for ``scenario.duration`` from joint positions
+    q0 (its integrator started there); returns (wall s, this process's CPU s) of Initialize +
+    AdvanceTo."""
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    context = simulator.get_mutable_context()
+    integrator.SetPositions(integrator.GetMyMutableContextFromRoot(context), q0)
+    start, cpu = time.perf_counter(), time.process_time()
+    simulator.Initialize()
+    simulator.AdvanceTo(scenario.duration)
+    return time.perf_counter() - start, time.process_time() - cpu
+
 class _Timed:
     """Wraps methods of classes, adding each call's duration (s) to ``seconds[class name]``
     (restored on exit): what a system's callbacks cost inside a run."""
@@ -699,14 +715,7 @@ def loop_section(repeats: int, log=print) -> list[dict]:
     replay = arm_reference_diagram(scenario, commanded_poses=record_commanded_poses(scenario))
 
     def simulate(diagram, ik):
-        simulator = Simulator(diagram)
-        ApplySimulatorConfig(scenario.simulator_config, simulator)
-        context = simulator.get_mutable_context()
-        ik.SetPositions(ik.GetMyMutableContextFromRoot(context), q0)
-        start, cpu = time.perf_counter(), time.process_time()
-        simulator.Initialize()
-        simulator.AdvanceTo(scenario.duration)
-        return time.perf_counter() - start, time.process_time() - cpu
+        return simulate_reference(scenario, diagram, ik, q0)
 
     def reference():
         seconds, cpu = simulate(diagram, ik)

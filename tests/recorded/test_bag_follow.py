@@ -109,7 +109,6 @@ def test_follower_pairs_camera_stamps_with_the_robot_pose(tmp_path):
     assert [round(s["stamp"], 3) for s in got] == [round(0.13 + 0.1 * k, 3) for k in range(6)]
 
 
-
 def test_a_read_that_meets_a_transaction_being_written_is_retried(tmp_path, monkeypatch):
     """SQLite can report a page the recorder is writing as corrupt ("database disk image is
     malformed"): the poll returns nothing, says it is waiting and why, and the next poll reads."""
