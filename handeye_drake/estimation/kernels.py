@@ -512,3 +512,97 @@ def rotation_between(R0, R1):
     if not is_orthonormal(M):
         return np.zeros(3), False
     return rotation_log(M), True
+
+
+# ------------------------------------------------------------- the calibrator's per-sample step
+
+#: Offsets in ``HandEyeTargetFilter.to_vector()`` (checked against its ``_LAYOUT`` by
+#: ``manifold.HandEyeTargetFilter.vector_update``).
+TARGET_FILTER_LAYOUT = dict(X_CE=0, X_BT=12, P=24, target_known=168, R_BE_ref=169,
+                            counters=178, size=195)
+
+
+@njit(**_CACHE)
+def _vector_pose(v, start):
+    X = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            X[i, j] = v[start + 3 * i + j]
+        X[i, 3] = v[start + 9 + i]
+        X[3, i] = 0.0
+    X[3, 3] = 1.0
+    return X
+
+
+@njit(**_CACHE)
+def _put_pose(v, start, X):
+    for i in range(3):
+        for j in range(3):
+            v[start + 3 * i + j] = X[i, j]
+        v[start + 9 + i] = X[i, 3]
+
+
+@njit(**_CACHE)
+def target_filter_step(v, x_BE, x_CT, G1, Rn, bound, iterations, max_consecutive, mode):
+    """One sample of ``HandEyeTargetFilter._update`` (and of its ``_gated_update`` and
+    counters) on its state vector ``v`` (``to_vector``'s layout), with the calibrator's outputs
+    of the result (``estimate_outputs`` and the status [mode, updates, rejected, NIS or −1]).
+
+    ``max_consecutive``: the config's ``max_consecutive_rejections`` (−1 for None). Returns
+    (code, v_new, x_CE, x_EC, std, cov, status): code 0 fused, 1 rejected, 2 not handled here —
+    the first sample (it places the target), no reference rotation yet, a rejection that would
+    start the covariance-inflation recovery, the rare cases ``pose_update`` leaves, a
+    non-rotation excitation step, or a result with an entry beyond ±1e300 (the numpy path then
+    decides, and raises if it is not finite). Same kernels in the same order as the numpy path:
+    equal to it bit for bit."""
+    nothing = np.zeros(0)
+    if v[168] == 0.0 or math.isnan(v[169]):
+        return 2, v, nothing, nothing, nothing, nothing, nothing
+    X_BE, X_CT, finite = sample_poses(x_BE, x_CT)
+    if not finite:
+        return 2, v, nothing, nothing, nothing, nothing, nothing
+    R_CTm = project_to_rotation(np.ascontiguousarray(X_CT[:3, :3]))
+    X_EB = inverse_pose(X_BE)
+    P = v[24:168].copy().reshape(12, 12) + G1
+    X_CE_new, X_BT_new, P_new, code, nis = pose_update(
+        _vector_pose(v, 0), _vector_pose(v, 12), P, X_EB, R_CTm,
+        np.ascontiguousarray(X_CT[:3, 3]), Rn, bound, iterations)
+    out = v.copy()
+    c = 178
+    if code == 2:
+        return 2, v, nothing, nothing, nothing, nothing, nothing
+    if code == 1:
+        if (max_consecutive >= 0 and math.isfinite(nis)
+                and out[c + 3] + 1 >= max_consecutive):
+            return 2, v, nothing, nothing, nothing, nothing, nothing
+        out[24:168] = P.reshape(144)
+        out[c + 1] += 1.0  # rejected
+        out[c + 3] += 1.0  # consecutive
+        out[c + 5] = nis
+    else:
+        for M in (X_CE_new, X_BT_new, P_new):
+            for e in M.ravel():
+                if not abs(e) <= 1e300:
+                    return 2, v, nothing, nothing, nothing, nothing, nothing
+        R_BE_ref = v[169:178].copy().reshape(3, 3)
+        phi, ok = rotation_between(R_BE_ref, np.ascontiguousarray(X_BE[:3, :3]))
+        if not ok:
+            return 2, v, nothing, nothing, nothing, nothing, nothing
+        _put_pose(out, 0, X_CE_new)
+        _put_pose(out, 12, X_BT_new)
+        out[24:168] = P_new.reshape(144)
+        out[c] += 1.0      # updates
+        out[c + 3] = 0.0   # consecutive
+        out[c + 5] = nis
+        if math.isfinite(nis):
+            out[c + 6] += nis
+            out[c + 7] += 1.0
+        for i in range(3):
+            for j in range(3):
+                out[c + 8 + 3 * i + j] += phi[i] * phi[j]
+    X_CE = _vector_pose(out, 0)
+    x_CE, x_EC, std, cov = estimate_outputs(X_CE, out[24:168].copy().reshape(12, 12))
+    status = np.empty(4)
+    status[0], status[1], status[2] = mode, out[c], out[c + 1]
+    status[3] = out[c + 5] if math.isfinite(out[c + 5]) else -1.0
+    return code, out, x_CE, x_EC, std, cov, status

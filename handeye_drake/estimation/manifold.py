@@ -514,6 +514,32 @@ class HandEyeTargetFilter(_ErrorStateFilter):
                                                                         X_BE[:3, :3]))
         return fused
 
+    @classmethod
+    def vector_step(cls, config: TargetFilter):
+        """``step(v, x_BE, x_CT, mode) -> (code, v_new, x_CE, x_EC, std, cov, status)``: ``_update``
+        of one sample (pose vectors [vec_row(R); p], no sample covariance) applied to a state
+        vector ``v`` (``to_vector()``), compiled (``kernels.target_filter_step``, equal bit for
+        bit), with the calibrator's outputs of the result. Code 2: a case it leaves to
+        ``from_vector(v)._update`` (then ``v_new`` is ``v``). ``config`` must be validated."""
+        layout = {name: s.start for name, s in cls._LAYOUT.slices.items()}
+        layout["size"] = cls._LAYOUT.size
+        if layout != kernels.TARGET_FILTER_LAYOUT:
+            raise AssertionError(f"kernels.TARGET_FILTER_LAYOUT {kernels.TARGET_FILTER_LAYOUT} "
+                                 f"differs from HandEyeTargetFilter._LAYOUT {layout}")
+        f = cls.__new__(cls)
+        f.config = config
+        f._setup()
+        G1, Rn = np.ascontiguousarray(f._G1), np.ascontiguousarray(f._Rn)
+        bound = float(min(f._gate, 6 * defaults.GROSS_ERROR_SIGMAS**2))
+        iterations = int(config.iterations)
+        limit = (-1 if config.max_consecutive_rejections is None
+                 else int(config.max_consecutive_rejections))
+        kernel = kernels.target_filter_step
+
+        def step(v, x_BE, x_CT, mode):
+            return kernel(v, x_BE, x_CT, G1, Rn, bound, iterations, limit, float(mode))
+        return step
+
     def _X_CE_hat(self) -> np.ndarray:
         return self._estimate[0]
 

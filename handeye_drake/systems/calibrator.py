@@ -136,6 +136,9 @@ class HandEyeCalibrator(LeafSystem):
                              f"{cap!r}")
         self._kind = estimator_type(estimator)
         self._config = estimator.validated()
+        # The estimator's compiled per-sample step on its state vector, where it has one.
+        self._vector_step = (self._kind.vector_step(self._config)
+                             if hasattr(self._kind, "vector_step") else None)
         self._M = int(M)
         self._init_method = init_method
         self._capacity = int(cap)
@@ -262,10 +265,25 @@ class HandEyeCalibrator(LeafSystem):
         if mode == STATUS_COLLECTING:
             self._Collect(context, discrete_state, np.concatenate([X_BE_vec, X_CT_vec]))
             return
-        estimator = self._Estimator(context)._copy()
         covariance = None
         if self._covariance_in_port.HasValue(context):
             covariance = self._covariance_in_port.Eval(context).reshape(6, 6)
+        elif self._vector_step is not None:
+            # The estimator's compiled step on its state vector (no object decoded or encoded;
+            # equal bit for bit to the update below), unless it leaves the sample to it.
+            code, v, x_CE, x_EC, std, cov, status = self._vector_step(
+                context.get_discrete_state(self._estimator_index).get_value(), X_BE_vec,
+                X_CT_vec, mode)
+            if code != 2:
+                discrete_state.set_value(self._estimator_index, v)
+                indices = self._output_indices
+                discrete_state.set_value(indices["X_CE_estimate"], x_CE)
+                discrete_state.set_value(indices["X_EC_estimate"], x_EC)
+                discrete_state.set_value(indices["X_EC_std"], std)
+                discrete_state.set_value(indices["X_EC_covariance"], cov)
+                discrete_state.set_value(indices["status"], status)
+                return
+        estimator = self._Estimator(context)._copy()
         if covariance is None:
             estimator._update(X_BE, X_CT)
         else:

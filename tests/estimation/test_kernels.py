@@ -176,3 +176,45 @@ def test_sample_poses_are_vector_to_pose_and_say_whether_finite():
     bad = pose_to_vector(Y)
     bad[10] = np.nan
     assert not kernels.sample_poses(pose_to_vector(X), bad)[2]
+
+
+@pytest.mark.parametrize("max_rejections", [None, 3])
+def test_target_filter_vector_step_equals_its_update_bit_for_bit(max_rejections):
+    """The calibrator's compiled step on the state vector gives, sample by sample, exactly the
+    object's ``_update`` (state vector and outputs), and leaves to it what it does not handle:
+    the first (target-placing) sample and a rejection that would start the inflation
+    recovery. Outliers exercise the rejected path."""
+    from handeye_drake.apps.speed import sample_poses
+    from handeye_drake.estimation.configs import TargetFilter
+    from handeye_drake.estimation.manifold import HandEyeTargetFilter
+    from handeye_drake.systems.calibrator import HandEyeCalibrator
+
+    X_BE, X_CT, X_CE, _ = sample_poses(80, seed=3)
+    rng = np.random.default_rng(5)
+    for k in (20, 21, 22, 23, 40):  # a run of gross outliers, then one more
+        X_CT[k] = X_CT[k] @ make_transform(rotation_exp(rng.normal(size=3) * 0.3), [0.05] * 3)
+    config = TargetFilter(rotation_sigma=0.002, translation_sigma=0.0005,
+                          max_consecutive_rejections=max_rejections).validated()
+    step = HandEyeTargetFilter.vector_step(config)
+    f = HandEyeTargetFilter(config, X_CE @ make_transform(rotation_exp([0.01, 0, 0]),
+                                                          [0.003, 0, 0]))
+    codes = []
+    for k in range(len(X_BE)):
+        v = f.to_vector()
+        code, v_new, x_CE, x_EC, std, cov, status = step(
+            v, pose_to_vector(X_BE[k]), pose_to_vector(X_CT[k]), 1.0)
+        fused = f._update(X_BE[k], X_CT[k])
+        codes.append(code)
+        if code == 2:
+            assert v_new is v
+            continue
+        assert code == (0 if fused else 1)
+        assert v_new.tobytes() == f.to_vector().tobytes(), k
+        expected = HandEyeCalibrator._OutputValues(f, 1.0)
+        for name, got in (("X_CE_estimate", x_CE), ("X_EC_estimate", x_EC),
+                          ("X_EC_std", std), ("X_EC_covariance", cov), ("status", status)):
+            assert got.tobytes() == expected[name].tobytes(), (k, name)
+    assert codes[0] == 2 and codes.count(0) > 40 and codes.count(1) >= 3
+    # With a lock-out limit of 3, the third rejection in a row is left to the object (which
+    # may inflate P); without a limit no rejection is.
+    assert (2 in codes[1:]) == (max_rejections is not None)
