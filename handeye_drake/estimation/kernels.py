@@ -359,6 +359,18 @@ def servo_errors(features, visible, x_CT, p_TQ, desired, min_depth):
 
 
 @njit(**_CACHE)
+def servo_sample(features, visible, x_CT, p_TQ, desired, min_depth):
+    """``servo_errors`` and whether its three inputs are all finite (the servo's input check),
+    in one call: (Z, usable, number usable, RMS error or −1, finite)."""
+    finite = True
+    for a in (features, visible, x_CT):
+        for i in range(a.shape[0]):
+            finite = finite and math.isfinite(a[i])
+    Z, usable, count, error = servo_errors(features, visible, x_CT, p_TQ, desired, min_depth)
+    return Z, usable, count, error, finite
+
+
+@njit(**_CACHE)
 def servo_twist(features, Z, usable, x_CE, K2, principal_point, desired, gain, max_w, max_v):
     """V_E = −gain · pinv(L_E) (s − s*) over the usable points, saturated (whole twist scaled)
     to ‖ω‖ ≤ max_w, ‖v‖ ≤ max_v — servo.VisualServoController._ServoTwist's formulas."""
@@ -481,6 +493,63 @@ def camera_sample(X_WE, X_EC, X_WT, p_TQ, K2, principal_point, width, height, mi
             x_WC[3 * i + j] = X_WC[i, j]
         x_WC[9 + i] = X_WC[i, 3]
     return uv, visible, x_CT, x_WC
+
+
+@njit(**_CACHE)
+def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, principal_point,
+                width, height, min_depth, pixel_sigma, pixel_noise, rotation_sigma,
+                translation_sigma, paper_model, pose_noise, rotation_tolerance):
+    """systems.camera.HandEyeCamera's sample from the plant's body poses in one call: the
+    arithmetic of ``hand_poses`` then ``camera_sample`` (the same functions, so the same
+    numbers), as one array [uv (2N); visible (N); x_CT; x_WC; x_BE; x_WE; checks (3)] with
+    checks = [x_WE finite, x_WE's rotation passes the camera's fast test (frob² and det within
+    0.999 × rotation_tolerance; 0 leaves the exact test to the caller), the noise read is
+    finite]."""
+    x, X_WE, X_BE = hand_poses(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB)
+    uv, visible, x_CT, x_WC = camera_sample(
+        X_WE, X_EC, X_WT, p_TQ, K2, principal_point, width, height, min_depth, pixel_sigma,
+        pixel_noise, rotation_sigma, translation_sigma, paper_model, pose_noise)
+    n = p_TQ.shape[0]
+    out = np.empty(3 * n + 51)
+    out[:2 * n] = uv
+    out[2 * n:3 * n] = visible
+    k = 3 * n
+    out[k:k + 12] = x_CT
+    out[k + 12:k + 24] = x_WC
+    for i in range(3):
+        for j in range(3):
+            out[k + 24 + 3 * i + j] = X_BE[i, j]
+        out[k + 33 + i] = X_BE[i, 3]
+    out[k + 36:k + 48] = x
+    finite = True
+    for i in range(12):
+        finite = finite and math.isfinite(x[i])
+    a, b, c, d, e, f, g, h, ii = x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8]
+    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
+        c * c + f * f + ii * ii - 1.0
+    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * ii, b * c + e * f + h * ii
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * ii - f * h) - b * (d * ii - f * g) + c * (d * h - e * g)
+    bound = 0.999 * rotation_tolerance
+    noise_finite = True
+    for i in range(pixel_noise.shape[0]):
+        noise_finite = noise_finite and math.isfinite(pixel_noise[i])
+    for i in range(pose_noise.shape[0]):
+        noise_finite = noise_finite and math.isfinite(pose_noise[i])
+    out[k + 48] = 1.0 if finite else 0.0
+    out[k + 49] = 1.0 if frob2 <= bound ** 2 and abs(det - 1.0) <= bound else 0.0
+    out[k + 50] = 1.0 if noise_finite else 0.0
+    return out
+
+
+@njit(**_CACHE)
+def all_finite(a, b):
+    """Every entry of the 1-D arrays a and b is finite."""
+    for x in (a, b):
+        for i in range(x.shape[0]):
+            if not math.isfinite(x[i]):
+                return False
+    return True
 
 
 @njit(**_CACHE)

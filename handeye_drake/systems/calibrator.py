@@ -257,8 +257,7 @@ class HandEyeCalibrator(LeafSystem):
             return  # no measurement at this instant (e.g. the target was not detected)
         X_BE_vec = self._X_BE_port.Eval(context)
         X_CT_vec = self._X_CT_port.Eval(context)
-        X_BE, X_CT, finite = kernels.sample_poses(X_BE_vec, X_CT_vec)
-        if not finite:
+        if not kernels.all_finite(X_BE_vec, X_CT_vec):
             raise ValueError(f"HandEyeCalibrator at t={context.get_time():.4f}: non-finite pose "
                              "on the X_BE or X_CT_measured input")
         mode = context.get_discrete_state(self._mode_index).get_value()[0]
@@ -283,6 +282,7 @@ class HandEyeCalibrator(LeafSystem):
                 discrete_state.set_value(indices["X_EC_covariance"], cov)
                 discrete_state.set_value(indices["status"], status)
                 return
+        X_BE, X_CT, _ = kernels.sample_poses(X_BE_vec, X_CT_vec)
         estimator = self._Estimator(context)._copy()
         if covariance is None:
             estimator._update(X_BE, X_CT)

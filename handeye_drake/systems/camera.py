@@ -102,6 +102,7 @@ class HandEyeCamera(LeafSystem):
 
         self._ee_input = EndEffectorPoseInput(self, plant, base_frame_name, ee_frame_name)
         self._X_WE_port, self._frames = self._ee_input.port, self._ee_input.frames
+        self._num_points = n
         self._pixel_noise_port = self.DeclareVectorInputPort(
             "pixel_noise", 2 * n, RandomDistribution.kGaussian)
         self._pose_noise_port = self.DeclareVectorInputPort(
@@ -195,7 +196,9 @@ class HandEyeCamera(LeafSystem):
         return in_image
 
     def _UpdateImage(self, context, discrete_state):
-        # The per-sample path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
+        if self._frames is not None and self._UpdateFromBodyPoses(context, discrete_state):
+            return
+        # The general path: the arithmetic of ``project_points`` and ``apply_pose_noise`` on
         # the settings checked once in the constructor, compiled (``kernels.camera_sample``;
         # tests check it equals them to rounding).
         x, X_WE_plant, X_BE = self._ee_input.Eval(context)
@@ -220,6 +223,39 @@ class HandEyeCamera(LeafSystem):
         discrete_state.set_value(self._X_CT_index, x_CT)
         discrete_state.set_value(self._X_WC_index, x_WC)
         discrete_state.set_value(self._X_BE_index, x if X_BE is None else pose_to_vector(X_BE))
+
+    def _UpdateFromBodyPoses(self, context, discrete_state) -> bool:
+        """The per-sample path with a plant: one compiled call (``kernels.camera_step``, the
+        same arithmetic as the general path below) and the fewest calls into Drake. False leaves
+        the sample to the general path, which raises the right error (a disconnected noise
+        input, a non-finite or non-rotation pose, non-finite noise) or decides a rotation
+        the fast test cannot."""
+        try:
+            pixel_noise = (self._pixel_noise_port.Eval(context) if self._pixel_sigma > 0
+                           else _NO_NOISE)
+            pose_noise = (self._pose_noise_port.Eval(context)
+                          if self._rotation_sigma > 0 or self._translation_sigma > 0
+                          else _NO_NOISE)
+        except RuntimeError:  # a noise input not connected: said below, by name
+            return False
+        poses = self._ee_input.port.Eval(context)
+        (iB, X_BodyB), (iE, X_BodyE) = self._frames
+        out = kernels.camera_step(
+            poses[iE].GetAsMatrix4(), X_BodyE, poses[iB].GetAsMatrix4(), X_BodyB, self._X_EC,
+            self._X_WT, self._p_TQ, self._K2, self._principal_point,
+            float(self._intrinsics.width), float(self._intrinsics.height), MIN_DEPTH,
+            self._pixel_sigma, pixel_noise, self._rotation_sigma, self._translation_sigma,
+            self._pose_noise_model == "paper", pose_noise, ROTATION_TOLERANCE)
+        n = self._num_points
+        k = 3 * n
+        if not (out[k + 48] and out[k + 49] and out[k + 50]):
+            return False
+        discrete_state.set_value(self._features_index, out[:2 * n])
+        discrete_state.set_value(self._visible_index, out[2 * n:k])
+        discrete_state.set_value(self._X_CT_index, out[k:k + 12])
+        discrete_state.set_value(self._X_WC_index, out[k + 12:k + 24])
+        discrete_state.set_value(self._X_BE_index, out[k + 24:k + 36])
+        return True
 
     def _EvalNoise(self, port, context, size):
         if not port.HasValue(context):

@@ -249,16 +249,20 @@ class VisualServoController(LeafSystem):
         return len(self._motions)
 
     def _UpdateCommand(self, context, discrete_state):
-        features = self._EvalFinite(self._features_port, context)
-        visible = self._EvalFinite(self._visible_port, context)
-        x_CT = self._EvalFinite(self._X_CT_port, context)
-        Z, usable, n_usable, feature_error = kernels.servo_errors(
+        features = self._features_port.Eval(context)  # (new arrays)
+        visible = self._visible_port.Eval(context)
+        x_CT = self._X_CT_port.Eval(context)
+        Z, usable, n_usable, feature_error, finite = kernels.servo_sample(
             features, visible, x_CT, self._p_TQ, self._desired, MIN_DEPTH)
+        if not finite:  # the input to blame, by name
+            for port in (self._features_port, self._visible_port, self._X_CT_port):
+                self._EvalFinite(port, context)
         if n_usable == 0:  # nothing to measure: keep the last value, status says why
             feature_error = float(context.get_discrete_state(self._error_index).get_value()[0])
         status = STATUS_OK if n_usable >= self._min_visible else STATUS_TOO_FEW_VISIBLE
 
-        phase = self.phase_at(context.get_time())
+        t = context.get_time()
+        phase = self.phase_at(t)
         command = _ZERO_TWIST
         if phase < len(self._motions):
             command = self._motion_twists[phase]
@@ -269,12 +273,13 @@ class VisualServoController(LeafSystem):
             else:
                 command = self._ServoTwist(features, Z, x_CE, usable)
 
-        discrete_state.get_mutable_vector(self._command_index).SetFromVector(command)
-        discrete_state.get_mutable_vector(self._phase_index).SetFromVector([float(phase)])
-        discrete_state.get_mutable_vector(self._error_index).SetFromVector([feature_error])
-        discrete_state.get_mutable_vector(self._status_index).SetFromVector([float(status)])
+        # (set_value: one call into Drake per group, half the cost of get_mutable_vector().
+        # SetFromVector)
+        discrete_state.set_value(self._command_index, command)
+        discrete_state.set_value(self._phase_index, np.array([float(phase)]))
+        discrete_state.set_value(self._error_index, np.array([float(feature_error)]))
+        discrete_state.set_value(self._status_index, np.array([float(status)]))
         # The desired pose reached at the end of the elapsed command period becomes X_k.
-        t = context.get_time()
         R, p = self._DesiredPose(context, t, orthonormalize=True)
         state = np.empty(19)
         state[:9], state[9:12], state[12], state[13:] = R.reshape(9), p, t, command

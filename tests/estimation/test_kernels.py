@@ -218,3 +218,69 @@ def test_target_filter_vector_step_equals_its_update_bit_for_bit(max_rejections)
     # With a lock-out limit of 3, the third rejection in a row is left to the object (which
     # may inflate P); without a limit no rejection is.
     assert (2 in codes[1:]) == (max_rejections is not None)
+
+
+def test_camera_step_is_hand_poses_then_camera_sample_bit_for_bit_with_its_checks():
+    rng = np.random.default_rng(11)
+    K = CameraIntrinsics(alpha_u=800.0, alpha_v=780.0, theta=math.pi / 2 - 0.01, u0=320.0,
+                         v0=240.0, width=640, height=480)
+    X_EC, X_BodyE, X_BodyB = random_pose(rng, 0.05), random_pose(rng, 0.1), random_pose(rng, 0.1)
+    X_WC = make_transform(rotation_exp([math.pi, 0.0, 0.0]), [0.0, 0.0, 0.6])
+    X_WBodyE = X_WC @ inverse(X_EC) @ inverse(X_BodyE)
+    X_WBodyB = random_pose(rng, 0.3)
+    p_TQ = np.array([[0.0, 0.0, 0.0], [0.05, 0.02, 0.0], [-0.03, 0.04, 0.0], [2.0, 0.0, 0.0]])
+    K2, c = np.ascontiguousarray(K.K[:2, :2]), np.array([K.u0, K.v0])
+    pixel_noise, pose_noise = rng.normal(size=8), rng.normal(size=12)
+
+    def step(X_WBodyE=X_WBodyE, pixel_noise=pixel_noise, pose_noise=pose_noise):
+        return kernels.camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, np.eye(4), p_TQ,
+                                   K2, c, 640.0, 480.0, MIN_DEPTH, 0.5, pixel_noise, 0.01, 0.002,
+                                   False, pose_noise, 1e-5)
+
+    out = step()
+    x, X_WE, X_BE = kernels.hand_poses(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB)
+    uv, visible, x_CT, x_WC = kernels.camera_sample(
+        X_WE, X_EC, np.eye(4), p_TQ, K2, c, 640.0, 480.0, MIN_DEPTH, 0.5, pixel_noise, 0.01,
+        0.002, False, pose_noise)
+    np.testing.assert_array_equal(out, np.concatenate(
+        [uv, visible, x_CT, x_WC, pose_to_vector(X_BE), x, [1.0, 1.0, 1.0]]))
+    assert visible.tolist() == [1.0, 1.0, 1.0, 0.0]
+    # Each check fails on its own defect.
+    bad = X_WBodyE.copy()
+    bad[0, 3] = np.nan
+    assert step(X_WBodyE=bad)[-3:].tolist()[0] == 0.0
+    scaled = X_WBodyE.copy()
+    scaled[:3, :3] *= 1.01
+    assert step(X_WBodyE=scaled)[-3:].tolist() == [1.0, 0.0, 1.0]
+    for noise in ("pixel", "pose"):
+        kwargs = {"pixel_noise": pixel_noise.copy(), "pose_noise": pose_noise.copy()}
+        kwargs[f"{noise}_noise"][3] = np.inf
+        assert step(**kwargs)[-3:].tolist() == [1.0, 1.0, 0.0]
+
+
+def test_servo_sample_is_servo_errors_and_says_whether_its_inputs_are_finite():
+    rng = np.random.default_rng(12)
+    p_TQ = rng.normal(scale=0.05, size=(4, 3))
+    x_CT = pose_to_vector(make_transform(np.eye(3), [0.0, 0.0, 0.5]))
+    features, desired = rng.uniform(100, 500, size=8), rng.uniform(100, 500, size=8)
+    visible = np.array([1.0, 0.0, 1.0, 1.0])
+    Z, usable, count, rms, finite = kernels.servo_sample(features, visible, x_CT, p_TQ, desired,
+                                                         MIN_DEPTH)
+    Z0, usable0, count0, rms0 = kernels.servo_errors(features, visible, x_CT, p_TQ, desired,
+                                                     MIN_DEPTH)
+    np.testing.assert_array_equal(Z, Z0)
+    np.testing.assert_array_equal(usable, usable0)
+    assert (count, rms, finite) == (count0, rms0, True) and count == 3
+    for k, a in enumerate((features, visible, x_CT)):
+        args = [features.copy(), visible.copy(), x_CT.copy()]
+        args[k][-1] = np.nan
+        assert not kernels.servo_sample(*args, p_TQ, desired, MIN_DEPTH)[4], k
+
+
+def test_all_finite():
+    a, b = np.ones(3), np.zeros(12)
+    assert kernels.all_finite(a, b)
+    for bad in (np.nan, np.inf, -np.inf):
+        c = b.copy()
+        c[7] = bad
+        assert not kernels.all_finite(a, c) and not kernels.all_finite(c, a)

@@ -252,3 +252,44 @@ def test_with_a_plant_it_reads_the_body_poses_as_the_pose_sensor_does():
         atol=1e-15)
     with pytest.raises(ValueError, match="ee_frame_name: no frame named 'flange'"):
         HandEyeCamera(CAM, X_EC, P_TQ, X_WT, PERIOD, plant=arm.plant, ee_frame_name="flange")
+
+
+@pytest.mark.parametrize("noise", ["unconnected", "nan", "fixed"])
+def test_with_a_plant_its_noise_inputs_are_checked_as_without(noise):
+    """The plant path's single compiled call keeps the general path's checks: a noise input
+    left unconnected or holding NaN is named; fixed noise enters as it does without a plant."""
+    from handeye_drake.systems.arm import add_arm
+    builder = DiagramBuilder()
+    arm = add_arm(builder)
+    X_WE_start = arm.plant.CalcRelativeTransform(
+        arm.plant.CreateDefaultContext(), arm.plant.world_frame(),
+        arm.plant.GetFrameByName("tool0")).GetAsMatrix4()
+    X_WT_seen = X_WE_start @ X_EC @ X_CT_true  # the target in view at the start pose
+    camera = builder.AddSystem(HandEyeCamera(CAM, X_EC, P_TQ[:4], X_WT_seen, PERIOD,
+                                             pixel_sigma=0.7, plant=arm.plant))
+    builder.Connect(arm.plant.get_body_poses_output_port(), camera.get_body_poses_input_port())
+    simulator = Simulator(builder.Build())
+    context = camera.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    pixel_noise = np.linspace(-1.0, 1.0, 8)
+    if noise == "nan":
+        pixel_noise[5] = np.nan
+    if noise != "unconnected":
+        camera.get_pixel_noise_input_port().FixValue(context, pixel_noise)
+    if noise == "unconnected":
+        with pytest.raises(ValueError, match="pixel_noise input.*not connected"):
+            simulator.Initialize()
+        return
+    if noise == "nan":
+        with pytest.raises(ValueError, match="pixel_noise input"):
+            simulator.Initialize()
+        return
+    simulator.Initialize()
+    uv = camera.get_features_output_port().Eval(context)
+    visible = camera.get_visible_output_port().Eval(context) > 0.5
+    X_WE = vector_to_pose(camera.get_X_WC_output_port().Eval(context)) @ inverse(X_EC)
+    expected, _, in_image = project_points(
+        (inverse(X_WE @ X_EC) @ X_WT_seen @ np.c_[P_TQ[:4], np.ones(4)].T).T[:, :3], CAM)
+    np.testing.assert_array_equal(visible, in_image)
+    assert visible.any()
+    expected[in_image] += 0.7 * pixel_noise.reshape(-1, 2)[in_image]
+    np.testing.assert_allclose(uv, expected.reshape(-1), atol=1e-9)
