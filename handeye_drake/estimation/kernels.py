@@ -496,6 +496,21 @@ def camera_sample(X_WE, X_EC, X_WT, p_TQ, K2, principal_point, width, height, mi
 
 
 @njit(**_CACHE)
+def rotation_fast_test(x, tolerance):
+    """The rotation R = x[:9] (row-major, a pose vector's) is clearly a rotation to
+    ``tolerance``: ‖RᵀR − I‖_F² ≤ (0.999 tol)² and |det R − 1| ≤ 0.999 tol. False decides
+    nothing: the exact test (``validation.rotation_defect``) then does."""
+    a, b, c, d, e, f, g, h, i = x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8]
+    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
+        c * c + f * f + i * i - 1.0
+    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    bound = 0.999 * tolerance
+    return frob2 <= bound * bound and abs(det - 1.0) <= bound
+
+
+@njit(**_CACHE)
 def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, principal_point,
                 width, height, min_depth, pixel_sigma, pixel_noise, rotation_sigma,
                 translation_sigma, paper_model, pose_noise, rotation_tolerance):
@@ -524,20 +539,13 @@ def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, prin
     finite = True
     for i in range(12):
         finite = finite and math.isfinite(x[i])
-    a, b, c, d, e, f, g, h, ii = x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8]
-    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
-        c * c + f * f + ii * ii - 1.0
-    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * ii, b * c + e * f + h * ii
-    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
-    det = a * (e * ii - f * h) - b * (d * ii - f * g) + c * (d * h - e * g)
-    bound = 0.999 * rotation_tolerance
     noise_finite = True
     for i in range(pixel_noise.shape[0]):
         noise_finite = noise_finite and math.isfinite(pixel_noise[i])
     for i in range(pose_noise.shape[0]):
         noise_finite = noise_finite and math.isfinite(pose_noise[i])
     out[k + 48] = 1.0 if finite else 0.0
-    out[k + 49] = 1.0 if frob2 <= bound ** 2 and abs(det - 1.0) <= bound else 0.0
+    out[k + 49] = 1.0 if rotation_fast_test(x, rotation_tolerance) else 0.0
     out[k + 50] = 1.0 if noise_finite else 0.0
     return out
 

@@ -270,13 +270,7 @@ class HandEyeCamera(LeafSystem):
 
 def _is_rotation(x) -> bool:
     """``rotation_defect(R) ≤ ROTATION_TOLERANCE`` for R = the first 9 entries of a pose
-    vector (row-major), on Python floats."""
-    a, b, c, d, e, f, g, h, i = x[:9].tolist()
-    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
-        c * c + f * f + i * i - 1.0
-    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    if frob2 <= (0.999 * ROTATION_TOLERANCE) ** 2 and abs(det - 1.0) <= 0.999 * ROTATION_TOLERANCE:
+    vector (row-major): the compiled fast test, the exact one where it cannot decide."""
+    if kernels.rotation_fast_test(x, ROTATION_TOLERANCE):
         return True
     return rotation_defect(np.reshape(x[:9], (3, 3))) <= ROTATION_TOLERANCE

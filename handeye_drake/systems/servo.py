@@ -321,15 +321,8 @@ class VisualServoController(LeafSystem):
 
 
 def _is_estimate_rotation(x) -> bool:
-    """``rotation_defect(R) ≤ ESTIMATE_ROTATION_TOLERANCE`` for R = the first 9 entries of a
-    pose vector (row-major), on Python floats; the exact test decides near the bound."""
-    a, b, c, d, e, f, g, h, i = x[:9].tolist()
-    g00, g11, g22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, \
-        c * c + f * f + i * i - 1.0
-    g01, g02, g12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    frob2 = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    tol = 0.999 * ESTIMATE_ROTATION_TOLERANCE
-    if frob2 <= tol * tol and abs(det - 1.0) <= tol:
+    """``rotation_defect(R) ≤ ESTIMATE_ROTATION_TOLERANCE`` for R = the first 9 entries of a pose
+    vector (row-major): the compiled fast test, the exact one where it cannot decide."""
+    if kernels.rotation_fast_test(x, ESTIMATE_ROTATION_TOLERANCE):
         return True
     return rotation_defect(np.reshape(x[:9], (3, 3))) <= ESTIMATE_ROTATION_TOLERANCE

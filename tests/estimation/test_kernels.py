@@ -284,3 +284,21 @@ def test_all_finite():
         c = b.copy()
         c[7] = bad
         assert not kernels.all_finite(a, c) and not kernels.all_finite(c, a)
+
+
+def test_rotation_fast_test_accepts_only_what_is_clearly_within_the_tolerance():
+    from handeye_drake.estimation.validation import rotation_defect
+    rng = np.random.default_rng(13)
+    R = rotation_exp(rng.normal(size=3))
+    x = pose_to_vector(make_transform(R, [0.1, 0.2, 0.3]))
+    assert kernels.rotation_fast_test(x, 1e-5)
+    for scale, tolerance in ((1.0 + 1e-7, 1e-5), (1.01, 1e-5), (1.05, 0.25), (1.1, 0.25)):
+        y = x.copy()
+        y[:9] *= scale
+        defect = rotation_defect((scale * R))
+        # Accepted exactly when the defect is below 0.999 × the tolerance (frob or det).
+        assert bool(kernels.rotation_fast_test(y, tolerance)) == (defect <= 0.999 * tolerance), \
+            (scale, defect)
+    reflected = x.copy()
+    reflected[:3] *= -1.0  # det −1, orthogonal
+    assert not kernels.rotation_fast_test(reflected, 0.25)
