@@ -516,7 +516,7 @@ def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, prin
                 translation_sigma, paper_model, pose_noise, rotation_tolerance):
     """systems.camera.HandEyeCamera's sample from the plant's body poses in one call: the
     arithmetic of ``hand_poses`` then ``camera_sample`` (the same functions, so the same
-    numbers), as one array [uv (2N); visible (N); x_CT; x_WC; x_BE; x_WE; checks (3)] with
+    numbers), as one array [uv (2N); visible (N); x_CT; x_WC; x_BE; checks (3)] with
     checks = [x_WE finite, x_WE's rotation passes the camera's fast test (frob² and det within
     0.999 × rotation_tolerance; 0 leaves the exact test to the caller), the noise read is
     finite]."""
@@ -525,7 +525,7 @@ def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, prin
         X_WE, X_EC, X_WT, p_TQ, K2, principal_point, width, height, min_depth, pixel_sigma,
         pixel_noise, rotation_sigma, translation_sigma, paper_model, pose_noise)
     n = p_TQ.shape[0]
-    out = np.empty(3 * n + 51)
+    out = np.empty(3 * n + 39)
     out[:2 * n] = uv
     out[2 * n:3 * n] = visible
     k = 3 * n
@@ -535,7 +535,6 @@ def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, prin
         for j in range(3):
             out[k + 24 + 3 * i + j] = X_BE[i, j]
         out[k + 33 + i] = X_BE[i, 3]
-    out[k + 36:k + 48] = x
     finite = True
     for i in range(12):
         finite = finite and math.isfinite(x[i])
@@ -544,9 +543,9 @@ def camera_step(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB, X_EC, X_WT, p_TQ, K2, prin
         noise_finite = noise_finite and math.isfinite(pixel_noise[i])
     for i in range(pose_noise.shape[0]):
         noise_finite = noise_finite and math.isfinite(pose_noise[i])
-    out[k + 48] = 1.0 if finite else 0.0
-    out[k + 49] = 1.0 if rotation_fast_test(x, rotation_tolerance) else 0.0
-    out[k + 50] = 1.0 if noise_finite else 0.0
+    out[k + 36] = 1.0 if finite else 0.0
+    out[k + 37] = 1.0 if rotation_fast_test(x, rotation_tolerance) else 0.0
+    out[k + 38] = 1.0 if noise_finite else 0.0
     return out
 
 

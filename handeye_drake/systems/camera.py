@@ -248,7 +248,7 @@ class HandEyeCamera(LeafSystem):
             self._pose_noise_model == "paper", pose_noise, ROTATION_TOLERANCE)
         n = self._num_points
         k = 3 * n
-        if not (out[k + 48] and out[k + 49] and out[k + 50]):
+        if not (out[k + 36] and out[k + 37] and out[k + 38]):
             return False
         discrete_state.set_value(self._features_index, out[:2 * n])
         discrete_state.set_value(self._visible_index, out[2 * n:k])

@@ -238,12 +238,12 @@ def test_camera_step_is_hand_poses_then_camera_sample_bit_for_bit_with_its_check
                                    False, pose_noise, 1e-5)
 
     out = step()
-    x, X_WE, X_BE = kernels.hand_poses(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB)
+    _, X_WE, X_BE = kernels.hand_poses(X_WBodyE, X_BodyE, X_WBodyB, X_BodyB)
     uv, visible, x_CT, x_WC = kernels.camera_sample(
         X_WE, X_EC, np.eye(4), p_TQ, K2, c, 640.0, 480.0, MIN_DEPTH, 0.5, pixel_noise, 0.01,
         0.002, False, pose_noise)
     np.testing.assert_array_equal(out, np.concatenate(
-        [uv, visible, x_CT, x_WC, pose_to_vector(X_BE), x, [1.0, 1.0, 1.0]]))
+        [uv, visible, x_CT, x_WC, pose_to_vector(X_BE), [1.0, 1.0, 1.0]]))
     assert visible.tolist() == [1.0, 1.0, 1.0, 0.0]
     # Each check fails on its own defect.
     bad = X_WBodyE.copy()
