@@ -176,6 +176,27 @@ def test_samples_flagged_invalid_are_skipped():
     assert sys.estimator(context).num_updates > 0
 
 
+@pytest.mark.parametrize("port", ["X_BE", "X_CT"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_non_finite_input_pose_is_an_error_naming_it(port, bad):
+    """Collecting or filtering, a NaN or infinite pose entry raises (it would poison the
+    estimate), naming the inputs."""
+    rng = np.random.default_rng(4)
+    X_EC = make_transform(rotation_exp([0.1, -0.2, 1.5]), [0.05, -0.03, 0.07])
+    X_BT = make_transform(rotation_exp([3.0, 0.1, 0.2]), [0.6, 0.1, 0.0])
+    X_BE, X_CT = _poses(rng, X_EC, 4, X_BT)
+    sys = HandEyeCalibrator(0.1, np.eye(4), ESTIMATORS["target"])
+    context = sys.CreateDefaultContext()
+    for k, phase in enumerate([0, 1, 2, 2]):  # the last: the filtering mode
+        poses = {"X_BE": X_BE[k].copy(), "X_CT": X_CT[k].copy()}
+        poses[port][1, 3] = bad
+        with pytest.raises(ValueError, match="non-finite pose on the X_BE or X_CT_measured"):
+            _step(sys, context, poses["X_BE"], poses["X_CT"], phase)
+        _step(sys, context, X_BE[k], X_CT[k], phase)
+    assert sys.get_status_output_port().Eval(context)[0] == STATUS_FILTERING
+    assert sys.estimator(context).num_updates == 1
+
+
 @pytest.mark.parametrize("kwargs, message", [
     (dict(period=0.0), "period"),
     (dict(X_CE_initial_guess=np.diag([1.0, 1.0, 2.0, 1.0])), "X_CE_initial_guess"),

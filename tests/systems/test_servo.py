@@ -340,12 +340,18 @@ def test_ports_and_infinite_limits():
     assert not servo.HasAnyDirectFeedthrough()
 
 
-def test_nan_input_raises():
+@pytest.mark.parametrize("port", ["features", "visible", "X_CT_measured"])
+def test_nan_input_raises_naming_the_input(port):
     uv, Z, X_CT = measure(X_WE_START)
-    uv = uv.copy()
-    uv[0, 0] = np.nan
-    diagram, servo, loggers = servo_with_fixed_inputs(uv, np.ones(5), X_CT, X_CE)
-    with pytest.raises(Exception, match="features input.*NaN"):
+    uv, visible, X_CT = uv.copy(), np.ones(5), X_CT.copy()
+    if port == "features":
+        uv[0, 0] = np.nan
+    elif port == "visible":
+        visible[2] = np.inf
+    else:
+        X_CT[2, 3] = np.nan
+    diagram, servo, loggers = servo_with_fixed_inputs(uv, visible, X_CT, X_CE)
+    with pytest.raises(Exception, match=f"{port} input.*NaN or infinite"):
         Simulator(diagram).Initialize()
 
 
