@@ -159,13 +159,18 @@ def test_calibrator_reports_degenerate_self_calibration():
     assert std[0] == pytest.approx(10 * np.degrees(np.sqrt(1e-2)), rel=1e-9)
 
 
-def test_samples_flagged_invalid_are_skipped():
-    rng = np.random.default_rng(3)
+def _target_calibrator(seed, n):
+    """A target-filter calibrator, its context and n consistent samples (X_BE, X_CT)."""
+    rng = np.random.default_rng(seed)
     X_EC = make_transform(rotation_exp([0.1, -0.2, 1.5]), [0.05, -0.03, 0.07])
     X_BT = make_transform(rotation_exp([3.0, 0.1, 0.2]), [0.6, 0.1, 0.0])
-    X_BE, X_CT = _poses(rng, X_EC, 6, X_BT)
+    X_BE, X_CT = _poses(rng, X_EC, n, X_BT)
     sys = HandEyeCalibrator(0.1, np.eye(4), ESTIMATORS["target"])
-    context = sys.CreateDefaultContext()
+    return sys, sys.CreateDefaultContext(), X_BE, X_CT
+
+
+def test_samples_flagged_invalid_are_skipped():
+    sys, context, X_BE, X_CT = _target_calibrator(3, 6)
     for k, phase in enumerate([0, 1, 2]):
         _step(sys, context, X_BE[k], X_CT[k], phase, valid=1)
     before = sys.estimator(context).to_vector()
@@ -181,12 +186,7 @@ def test_samples_flagged_invalid_are_skipped():
 def test_a_non_finite_input_pose_is_an_error_naming_it(port, bad):
     """Collecting or filtering, a NaN or infinite pose entry raises (it would poison the
     estimate), naming the inputs."""
-    rng = np.random.default_rng(4)
-    X_EC = make_transform(rotation_exp([0.1, -0.2, 1.5]), [0.05, -0.03, 0.07])
-    X_BT = make_transform(rotation_exp([3.0, 0.1, 0.2]), [0.6, 0.1, 0.0])
-    X_BE, X_CT = _poses(rng, X_EC, 4, X_BT)
-    sys = HandEyeCalibrator(0.1, np.eye(4), ESTIMATORS["target"])
-    context = sys.CreateDefaultContext()
+    sys, context, X_BE, X_CT = _target_calibrator(4, 4)
     for k, phase in enumerate([0, 1, 2, 2]):  # the last: the filtering mode
         poses = {"X_BE": X_BE[k].copy(), "X_CT": X_CT[k].copy()}
         poses[port][1, 3] = bad
