@@ -296,14 +296,21 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
                                      X_EC_true) -> RenderedCameraParts:
     """The board of ``camera.model.target`` at ``target.X_WT`` in the scene graph (perception
     and illustration roles), an ``RgbdSensor`` on the end-effector at the true X_EC with
-    ``camera.sensor``'s intrinsics, clipping and background, the ``TargetDetector`` on its colour
+    ``camera.sensor``'s intrinsics, clipping and background — rendering from a perception-only
+    copy of the scene (``add_perception_scene_graph``) — the ``TargetDetector`` on its colour
     image, and the camera pose X_WC from the kinematics."""
+    from .systems.perception_scene import add_perception_scene_graph
     from .systems.rendered_camera import add_target_geometry, mount_rendered_camera
     model, sensor = scenario.camera.model, scenario.camera.sensor
     target = model.parsed_target()
     intrinsics = intrinsics_of(scenario)
+    plant = arm.handles.plant
     add_target_geometry(arm.handles.scene_graph, target,
                         transform_matrix(scenario.target.X_WT, "target.X_WT"))
+    # The camera renders from a copy of the scene posed only when it renders: a renderer in the
+    # plant's SceneGraph would be updated at each of the plant's steps (≈ 17 a frame).
+    hand = plant.GetFrameByName(scenario.arm.ee_frame).body()
+    scene = add_perception_scene_graph(builder, plant, arm.handles.scene_graph, bodies=[hand])
     bg = sensor.background
     near, far = sensor.clipping_near, sensor.clipping_far
     # The depth range (unused: colour only) kept inside the clipping range.
@@ -311,7 +318,7 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
     if not z_near < z_far:
         z_near, z_far = near, far
     rendered = mount_rendered_camera(
-        builder, arm.handles.scene_graph, arm.handles.plant, scenario.arm.ee_frame, X_EC_true,
+        builder, scene, plant, scenario.arm.ee_frame, X_EC_true,
         intrinsics, supersample=model.supersample, name=sensor.name or "camera",
         clipping_near=near, clipping_far=far, z_near=z_near, z_far=z_far,
         background=(bg.r(), bg.g(), bg.b()), fps=sensor.fps)

@@ -43,7 +43,9 @@ def compact_dot(diagram, title: str | None = None) -> str:
     def q(text: str) -> str:
         return html.escape(text, quote=True)
 
-    lines = ["digraph compact {", "  rankdir=TB; newrank=true; nodesep=0.2; ranksep=0.4;",
+    # size: scaled down (never up) to fit a page width of 10.2 in (≈ 980 px).
+    lines = ["digraph compact {", '  rankdir=TB; newrank=true; nodesep=0.2; ranksep=0.4; '
+             'size="10.2,40";',
              '  node [shape=box, style="rounded,filled", fillcolor="#f4f6fb", color="#4a5a80", '
              'fontname="Helvetica", fontsize=12, margin="0.12,0.05"];',
              '  edge [fontname="Helvetica", fontsize=10, color="#4a5a80", fontcolor="#333333"];']

@@ -9,6 +9,8 @@
     motion_source.py PaperMotionSource
     rendered_camera.py  add_target_geometry, add_rendered_camera, mount_rendered_camera,
                         camera_config, RenderedCamera (functions: RgbdSensor + textured target)
+    perception_scene.py add_perception_scene_graph, PerceptionScenePoses (a render-only copy
+                     of the plant's scene, posed when a camera renders, not every plant step)
     image_downsampler.py ImageAreaDownsampler (supersampling of rendered images)
     target_detector.py TargetDetector
     camera_pose.py   HandCameraPose (true X_WC of a rendered camera, for logs and Meshcat, and
@@ -26,6 +28,7 @@ from .camera_pose import HandCameraPose
 from .frame_recorder import FrameRecorder
 from .image_downsampler import ImageAreaDownsampler
 from .motion_source import PaperMotionSource
+from .perception_scene import PerceptionScene, PerceptionScenePoses, add_perception_scene_graph
 from .rendered_camera import (RenderedCamera, add_rendered_camera, add_target_geometry,
                               camera_config, mount_rendered_camera)
 from .servo import SelfCalibrationMotion, VisualServoController
@@ -33,7 +36,8 @@ from .target_detector import TargetDetector
 from .trigger_sampler import CameraTriggerSampler
 
 __all__ = ["CameraTriggerSampler", "DifferentialIkDriver", "EndEffectorPoseSensor",
-           "FrameRecorder", "HandCameraPose", "PoseTrackingDriver", "add_pose_tracking_driver",
+           "FrameRecorder", "HandCameraPose", "PerceptionScene", "PerceptionScenePoses",
+           "add_perception_scene_graph", "PoseTrackingDriver", "add_pose_tracking_driver",
            "frame_in_body", "HandEyeCalibrator", "HandEyeCamera", "ImageAreaDownsampler", "PaperMotionSource", "RenderedCamera",
            "SelfCalibrationMotion", "TargetDetector", "UR5E_HOME_Q", "UR5E_URDF",
            "VisualServoController", "add_arm", "add_hand_eye_calibrator", "add_rendered_camera", "add_target_geometry",

@@ -70,6 +70,7 @@ from ..estimation.validation import as_matrix, as_transform, check_positive
 from ..vision.camera_model import CameraIntrinsics
 from ..vision.targets import render_target
 from .image_downsampler import ImageAreaDownsampler
+from .perception_scene import PerceptionScene
 
 #: Name of the RenderEngineVtk instance the cameras of this module share.
 RENDERER_NAME = "handeye_vtk"
@@ -252,14 +253,17 @@ def add_rendered_camera(builder: DiagramBuilder, scene_graph: SceneGraph, parent
                           config=config, supersample=k)
 
 
-def mount_rendered_camera(builder: DiagramBuilder, scene_graph: SceneGraph,
+def mount_rendered_camera(builder: DiagramBuilder, scene_graph: SceneGraph | PerceptionScene,
                           plant: MultibodyPlant, frame, X_FC, intrinsics: CameraIntrinsics,
                           supersample: int = 1, **config_kwargs) -> RenderedCamera:
     """``add_rendered_camera`` on a MultibodyPlant frame F (a ``Frame`` or its name, e.g. the
     UR5e flange "tool0", a fixed frame on body "wrist_3_link"), with the camera's optical frame
     at ``X_FC`` in F (for a hand camera F = E and X_FC = X_EC). The parent is F's body frame in
     SceneGraph and X_PC = X_BodyF · X_FC, as ``ApplyCameraConfig`` resolves ``X_PB.base_frame``.
-    ``plant`` must be connected to ``scene_graph`` (``AddMultibodyPlantSceneGraph``)."""
+    ``plant`` must be connected to ``scene_graph`` (``AddMultibodyPlantSceneGraph``), or
+    ``scene_graph`` is a ``PerceptionScene`` of ``plant`` (``add_perception_scene_graph``, with
+    F's body among its frames): the camera then renders there, and the plant's own SceneGraph
+    gets no renderer to update at every plant step."""
     if not isinstance(plant, MultibodyPlant):
         raise ValueError(f"plant: expected a MultibodyPlant, got {type(plant).__name__}")
     if isinstance(frame, str):
@@ -271,6 +275,12 @@ def mount_rendered_camera(builder: DiagramBuilder, scene_graph: SceneGraph,
                          f"{type(frame).__name__}")
     X_FC = as_transform(X_FC, "X_FC")
     X_BodyF = frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
+    if isinstance(scene_graph, PerceptionScene):
+        if scene_graph.plant is not plant:
+            raise ValueError("scene_graph: this PerceptionScene mirrors another plant")
+        return add_rendered_camera(builder, scene_graph.scene_graph,
+                                   scene_graph.frame_id(frame.body()), X_BodyF @ X_FC,
+                                   intrinsics, supersample, **config_kwargs)
     try:
         parent = plant.GetBodyFrameIdOrThrow(frame.body().index())
     except RuntimeError as e:
