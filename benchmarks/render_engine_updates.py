@@ -28,11 +28,8 @@ def main(argv=None) -> int:
     if args.repeats < 1:
         parser.error(f"--repeats: must be ≥ 1, got {args.repeats}")
 
-    import numpy as np
-    from pydrake.systems.framework import DiagramBuilder
-
     from handeye_drake.apps.speed import (
-        PoseReplay,
+        arm_reference_diagram,
         load_average,
         pin_blas_threads,
         record_commanded_poses,
@@ -40,9 +37,7 @@ def main(argv=None) -> int:
         simulate_reference,
     )
     from handeye_drake.scenario import transform_matrix
-    from handeye_drake.simulation import DRIVER_STEPS_PER_PERIOD, camera_pose_on_hand, \
-        intrinsics_of
-    from handeye_drake.systems.arm import add_arm, add_pose_tracking_driver, make_control_plant
+    from handeye_drake.simulation import camera_pose_on_hand, intrinsics_of
     from handeye_drake.systems.perception_scene import add_perception_scene_graph
     from handeye_drake.systems.rendered_camera import add_target_geometry, \
         mount_rendered_camera
@@ -53,18 +48,7 @@ def main(argv=None) -> int:
     a, sensor, model = scenario.arm, scenario.camera.sensor, scenario.camera.model
 
     def build(camera: str | None):
-        X_WB = transform_matrix(a.X_WB, "arm.X_WB")
-        q0 = np.radians(a.q0_deg)
-        builder = DiagramBuilder()
-        handles = add_arm(builder, plant_config=scenario.plant_config, urdf=a.urdf or None,
-                          base_frame=a.base_frame, ee_frame=a.ee_frame, X_WB=X_WB, q0=q0)
-        control = make_control_plant(urdf=a.urdf or None, base_frame=a.base_frame, X_WB=X_WB)
-        driver = add_pose_tracking_driver(builder, handles, control,
-                                          scenario.period / DRIVER_STEPS_PER_PERIOD,
-                                          velocity_scale=a.driver.velocity_scale)
-        replay = builder.AddNamedSystem("pose_replay", PoseReplay(*poses))
-        builder.Connect(replay.get_output_port(), driver.X_BE_desired_input_port())
-        if camera is not None:
+        def add_camera(builder, handles, control):
             add_target_geometry(handles.scene_graph, model.parsed_target(),
                                 transform_matrix(scenario.target.X_WT, "target.X_WT"))
             scene = handles.scene_graph
@@ -77,8 +61,10 @@ def main(argv=None) -> int:
                                   supersample=model.supersample, name="camera",
                                   clipping_near=sensor.clipping_near,
                                   clipping_far=sensor.clipping_far)
-        diagram = builder.Build()
-        return lambda: simulate_reference(scenario, diagram, driver.integrator, q0)[0]
+
+        diagram, integrator, _, q0 = arm_reference_diagram(
+            scenario, commanded_poses=poses, extend=None if camera is None else add_camera)
+        return lambda: simulate_reference(scenario, diagram, integrator, q0)[0]
 
     setups = {"the arm alone": build(None),
               "+ renderer and RgbdSensor in the plant's SceneGraph": build("plant"),

@@ -500,7 +500,7 @@ def calibrator_section(repeats: int, num_samples: int = 300, log=print) -> list[
 # The closed loop vs the arm driven by Drake's C++ differential IK.
 
 def arm_reference_diagram(scenario, twist_duration: float | None = None,
-                          idle_python_systems: int = 0, commanded_poses=None):
+                          idle_python_systems: int = 0, commanded_poses=None, extend=None):
     """The scenario's arm plant (same ``plant_config``, same start) driven by Drake's C++
     ``DifferentialInverseKinematicsIntegrator`` at our driver's time step and joint limits,
     toward a fixed pose reached at a constant end-effector twist (its speed limits) — and nothing
@@ -508,8 +508,9 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
     Python systems cost the simulator by being there). ``commanded_poses`` ((times, poses) of
     ``record_commanded_poses``): instead, the loop's own driver (``add_pose_tracking_driver``:
     the same integrator with frame A = B and the scenario's velocity scale) tracks those poses,
-    replayed by ``PoseReplay`` — the loop's own motion. Returns (diagram, integrator, plant,
-    q0)."""
+    replayed by ``PoseReplay`` — the loop's own motion; ``extend(builder, handles, control)``,
+    if given, is called with it before the diagram is built (what a variant adds, e.g. a camera).
+    Returns (diagram, integrator, plant, q0)."""
     from pydrake.common.value import AbstractValue
     from pydrake.math import RigidTransform
     from pydrake.multibody.inverse_kinematics import (
@@ -544,6 +545,8 @@ def arm_reference_diagram(scenario, twist_duration: float | None = None,
                                           velocity_scale=a.driver.velocity_scale)
         replay = builder.AddNamedSystem("pose_replay", PoseReplay(*commanded_poses))
         builder.Connect(replay.get_output_port(), driver.X_BE_desired_input_port())
+        if extend is not None:
+            extend(builder, handles, control)
         return builder.Build(), driver.integrator, handles.plant, q0
     params = DifferentialInverseKinematicsParameters(n, n)
     params.set_joint_position_limits((control.GetPositionLowerLimits(),

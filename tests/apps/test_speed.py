@@ -147,6 +147,26 @@ def test_the_replayed_reference_moves_the_arm_as_the_loop_did():
     assert moved > 0.05 and worst < 1e-9, (moved, worst)
 
 
+def test_the_replay_reference_takes_what_a_variant_adds():
+    """``extend`` (benchmarks/render_engine_updates.py adds a camera with it) is called with the
+    builder, the arm's handles and the control plant before the replay diagram is built."""
+    from pydrake.math import RigidTransform
+    from pydrake.systems.primitives import PassThrough
+
+    from handeye_drake.scenario import load_scenario
+
+    seen = []
+
+    def extend(builder, handles, control):
+        seen.append((handles.plant.is_finalized(), control.num_positions()))
+        builder.AddNamedSystem("added_by_extend", PassThrough(1))
+
+    diagram, _, _, _ = speed.arm_reference_diagram(
+        load_scenario(), commanded_poses=([0.0], [RigidTransform()]), extend=extend)
+    assert seen == [(True, 6)]
+    assert "added_by_extend" in {s.get_name() for s in diagram.GetSystems()}
+
+
 def test_callback_timer_counts_each_call_and_restores_the_methods():
     class Thing:
         def _Work(self, n):
