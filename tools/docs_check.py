@@ -153,7 +153,7 @@ def run_block(block: Block, root: Path = ROOT) -> Run:
     """Runs a block's commands in one bash shell in a scratch directory whose entries link to
     the repository's (commands write their `out/` there). Blocks with the same commands (the
     README's tour and a page's) run once."""
-    key = (tuple(c.text for c in block.commands), str(root))
+    key = (tuple(" ".join(c.text.split()) for c in block.commands), str(root))
     if key not in _RUNS:
         _RUNS[key] = _run_block(block, root)
     return _RUNS[key]
@@ -322,7 +322,47 @@ def speed_table(root: Path = ROOT) -> str:
     return render_speed_table(json.loads((root / "benchmarks/results/speed.json").read_text()))
 
 
-GENERATORS = {"speed-table": speed_table}
+def _median(m: dict, key: str, digits: int = 3) -> str:
+    return f"{m[key]['median']:.{digits}g}"
+
+
+def render_accuracy_table(report: dict) -> str:
+    """Markdown of `handeye-drake benchmark accuracy --json`: medians of the final errors per
+    setting for ours, the best OpenCV method, the paper's filter and the ML reference."""
+    out = ["| setting | ours | best OpenCV | paper's filter | ML reference |", "|---|---|---|---|---|"]
+    for name, setting in report["settings"].items():
+        methods = setting["methods"]
+        ours_name = "manifold_ml_start" if "manifold_ml_start" in methods else "target"
+        ours = methods[ours_name]
+        cv = {k: v for k, v in methods.items() if k.startswith("opencv_") and v["runs"]}
+        best_r = min(cv, key=lambda k: cv[k]["rotation_deg"]["median"])
+        best_t = min(cv, key=lambda k: cv[k]["translation_pct"]["median"])
+        cv_text = (f"{_median(cv[best_r], 'rotation_deg')}° ({best_r[7:]}) / "
+                   f"{_median(cv[best_t], 'translation_pct')} % ({best_t[7:]})")
+        paper = methods["paper_kf"]
+        failed = setting["runs"] - paper["runs"]
+        paper_text = (f"{_median(paper, 'rotation_deg')}° / {_median(paper, 'translation_pct')} %"
+                      + (f" ({failed} failed)" if failed else ""))
+        ml = methods[setting["reference"]]
+        out.append(f"| `{name}`: {_cell(setting['description'])}; {setting['runs']} runs, error of "
+                   f"{setting['error_of']} | **{_median(ours, 'rotation_deg')}° / "
+                   f"{_median(ours, 'translation_pct')} %** (`{ours_name}`) | {cv_text} | "
+                   f"{paper_text} | {_median(ml, 'rotation_deg')}° / "
+                   f"{_median(ml, 'translation_pct')} % (`{setting['reference']}`) |")
+    met = sum(t["met"] for t in report["targets"])
+    out += ["", f"Targets checked by the benchmark: {met} of {len(report['targets'])} met. "
+            f"From `{report['command']}` (seed {report['seed']}; the errors do not depend on the "
+            f"machine)."]
+    return "\n".join(out) + "\n"
+
+
+def accuracy_table(root: Path = ROOT) -> str:
+    """The table of docs/benchmarks.md, from benchmarks/results/accuracy.json."""
+    return render_accuracy_table(
+        json.loads((root / "benchmarks/results/accuracy.json").read_text(encoding="utf-8")))
+
+
+GENERATORS = {"speed-table": speed_table, "accuracy-table": accuracy_table}
 GENERATED = re.compile(r"^(<!-- begin generated: ([\w-]+) -->\n)(.*?)^(<!-- end generated: \2 -->)",
                        re.S | re.M)
 
