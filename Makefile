@@ -53,7 +53,7 @@ test: setup
 # reproduce all: minutes; not in CI). `docs-regenerate` rewrites the sections generated from
 # committed benchmark results (benchmarks/results/*.json).
 docs: setup
-	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict -d out/site
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
 
 docs-check: setup
 	$(BIN)/python tools/docs_check.py
