@@ -1,0 +1,185 @@
+"""Generator of a rendered multi-camera rig for ``handeye-drake calibrate --camera NAME:DIR``.
+
+The cell of ``example_images`` (a UR5e, base at the world origin so B = W, a ChArUco board face
+up on the table at X_BT) with several cameras rendered by Drake (RenderEngineVtk) at the same
+robot poses (``example_images.sample_robot_poses``: the first hand camera sees the whole board
+from 0.38–0.55 m):
+
+- ``wrist``: on the flange at ``example_images.TRUE_X_EC`` (eye-in-hand: X_EC);
+- ``wrist2``: on the flange 6 cm beside it, toed in 7° (a stereo pair; it sees most of the board);
+- ``cell``: fixed in the cell at ``TRUE_X_BC_CELL``, 0.9 m from the board, looking at it
+  obliquely (a cell camera watching the same board: X_BC; the arm may hide part of the board).
+
+Files written to ``out_dir``: ``robot_poses.tum`` (X_BE, one line per image index, shared by every
+camera), and per camera ``NAME/img_000.png`` … (grey PNG; the same index is the same instant) and
+``NAME/intrinsics.yaml``; ``truth.json`` (X_BT, per camera its mount, X_EC or X_BC, intrinsics).
+
+Unkind options: ``distortion`` per camera (the rendered pinhole image re-mapped through OpenCV's
+model), ``moved`` {name: (index, X_delta)}: from image ``index`` on, the camera's mount is
+X · X_delta (a camera knocked during the recording), ``blank`` names a camera whose images do
+not show the board (covered lens).
+
+Drake and OpenCV are imported inside the functions (``handeye_drake.recorded`` stays Drake-free).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..estimation.se3 import inverse, make_transform, rotation_from_rpy
+from .example_images import (BACKGROUND, INTRINSICS, SUPERSAMPLE, TARGET_SPEC, TRUE_X_EC,
+                             _HOME_Q, _target_pose, _tum_line, sample_robot_poses)
+
+#: Second hand camera: 6 cm along x_C of the first, toed in 7° about y_C towards the board.
+TRUE_X_EC2 = TRUE_X_EC @ make_transform(rotation_from_rpy([0.0, math.radians(-7.0), 0.0]),
+                                        [0.06, 0.0, 0.0])
+
+
+def _look_at(p_B, aim_B, up_B=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """X_BC of a camera at p_B whose optical axis z_C points at aim_B, image y_C down-ish."""
+    z = np.asarray(aim_B, float) - np.asarray(p_B, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, -np.asarray(up_B, float))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return make_transform(np.column_stack([x, y, z]), p_B)
+
+
+#: The cell camera: 0.9 m from the board centre, on the far side from the robot, 40° above the
+#: table, looking at the board.
+TRUE_X_BC_CELL = _look_at([-1.05, -0.62, 0.62], [-0.50, -0.15, 0.0]) @ make_transform(
+    rotation_from_rpy([0.0, 0.0, math.radians(4.0)]), [0.0, 0.0, 0.0])
+
+#: The default rig: name → (mount "hand" | "cell", X_EC or X_BC).
+DEFAULT_RIG = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
+               "cell": ("cell", TRUE_X_BC_CELL)}
+
+
+def _distort(image, K, dist):
+    """The pinhole image as seen through OpenCV's distortion model ``dist`` (same K)."""
+    import cv2
+    h, w = image.shape[:2]
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    pts = np.stack([u.ravel(), v.ravel()], 1).reshape(-1, 1, 2)
+    xy = cv2.undistortPoints(pts, K, np.asarray(dist, float)).reshape(-1, 2)
+    src = xy @ K[:2, :2].T + K[:2, 2]
+    return cv2.remap(image, src[:, 0].reshape(h, w).astype(np.float32),
+                     src[:, 1].reshape(h, w).astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+
+
+def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre):
+    """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras)."""
+    import cv2
+    from pydrake.systems.framework import DiagramBuilder
+
+    from ..systems.arm import add_arm
+    from ..systems.rendered_camera import add_target_geometry, mount_rendered_camera
+    builder = DiagramBuilder()
+    arm = add_arm(builder, q0=_HOME_Q)
+    add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
+    handles = {}
+    for name, (mount, X) in cameras.items():
+        frame = arm.ee_frame if mount == "hand" else arm.plant.world_frame()
+        handles[name] = mount_rendered_camera(
+            builder, arm.scene_graph, arm.plant, frame, X, intrinsics, supersample=SUPERSAMPLE,
+            clipping_near=0.05, clipping_far=3.0, background=BACKGROUND, name=f"rig_{name}")
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant_context = arm.plant.GetMyMutableContextFromRoot(context)
+    out = {name: [] for name in cameras}
+    for q in qs:
+        arm.plant.SetPositions(plant_context, arm.model_instance, q)
+        for name, cam in handles.items():
+            out[name].append(cv2.cvtColor(cam.EvalColorImage(context), cv2.COLOR_RGBA2GRAY))
+    return out
+
+
+def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: dict | None = None,
+                         distortion: dict | None = None, moved: dict | None = None,
+                         blank=(), pixels_per_metre: float = 2500.0) -> dict:
+    """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
+    ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``)."""
+    import cv2
+    from ..vision.camera_model import CameraIntrinsics
+    from ..vision.intrinsics import write_intrinsics_yaml
+    from ..vision.targets import format_target, parse_target
+
+    cameras = dict(DEFAULT_RIG if cameras is None else cameras)
+    for name, (mount, _) in cameras.items():
+        if mount not in ("hand", "cell"):
+            raise ValueError(f"cameras[{name!r}]: mount must be 'hand' or 'cell', got {mount!r}")
+    distortion, moved = dict(distortion or {}), dict(moved or {})
+    qs, X_BEs = sample_robot_poses(seed, num_images)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    target = parse_target(TARGET_SPEC)
+    X_BT = _target_pose(target)
+    fx, fy, cx, cy, width, height = INTRINSICS
+    pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
+                               distortion=(0.0,) * 5)
+    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre)
+    if moved:
+        first = min(int(k) for k, _ in moved.values())
+        after = _render({n: (cameras[n][0], cameras[n][1] @ np.asarray(d, float))
+                         for n, (_, d) in moved.items()}, qs[first:], pinhole, X_BT, target,
+                        pixels_per_metre)
+        for n, (k, _) in moved.items():
+            images[n][k:] = after[n][k - first:]
+    truth_cams = {}
+    for name, (mount, X) in cameras.items():
+        folder = out / name
+        folder.mkdir(exist_ok=True)
+        dist = tuple(float(d) for d in distortion.get(name, (0.0,) * 5))
+        for k, img in enumerate(images[name]):
+            if name in blank:
+                img = np.full_like(img, 80)
+            elif any(dist):
+                img = _distort(img, pinhole.K, dist)
+            cv2.imwrite(str(folder / f"img_{k:03d}.png"), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        write_intrinsics_yaml(CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy,
+                                               width=width, height=height, distortion=dist),
+                              folder / "intrinsics.yaml")
+        truth_cams[name] = {"mount": mount, "mode": "eye_in_hand" if mount == "hand"
+                            else "eye_to_hand",
+                            ("X_EC" if mount == "hand" else "X_BC"): np.asarray(X).tolist(),
+                            "distortion": list(dist),
+                            "moved": None if name not in moved else
+                            {"from_index": int(moved[name][0]),
+                             "X_delta": np.asarray(moved[name][1]).tolist()},
+                            "blank": name in blank}
+    lines = ["# handeye_drake example rig: X_BE (flange in robot base), metres; line k goes "
+             "with img_k.png of every camera", "# index tx ty tz qx qy qz qw"]
+    lines += [_tum_line(float(k), X) for k, X in enumerate(X_BEs)]
+    (out / "robot_poses.tum").write_text("\n".join(lines) + "\n")
+    truth = {"description": "multi-camera rig rendered by handeye_drake/recorded/example_rig.py",
+             "seed": int(seed), "target": format_target(target), "X_BT": X_BT.tolist(),
+             "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": width,
+                            "height": height},
+             "cameras": truth_cams, "X_BE": [X.tolist() for X in X_BEs]}
+    (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
+    return truth
+
+
+def relative_truth(truth: dict, a: str, b: str) -> np.ndarray | None:
+    """True X_{C_a C_b} of two cameras on the same mount (None across mounts)."""
+    ca, cb = truth["cameras"][a], truth["cameras"][b]
+    if ca["mount"] != cb["mount"]:
+        return None
+    key = "X_EC" if ca["mount"] == "hand" else "X_BC"
+    return inverse(np.asarray(ca[key])) @ np.asarray(cb[key])
+
+
+if __name__ == "__main__":
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--num-images", type=int, default=10)
+    a = parser.parse_args()
+    t = generate_example_rig(a.out_dir, a.seed, a.num_images)
+    print(f"wrote {len(t['X_BE'])} images per camera ({', '.join(t['cameras'])}) to {a.out_dir}")

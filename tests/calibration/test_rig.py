@@ -1,0 +1,129 @@
+"""Multi-camera rigs calibrated jointly (``calibration.rig``) on a rendered cell: two hand cameras
+and cell cameras watching one board fixed in the cell (mixed modes), rendered once per module;
+each answer within its σ of the truth, and bad rigs (a camera that never sees the board, swapped
+folders, a camera knocked half-way) FAIL naming the camera."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from handeye_drake.calibration.api import CalibrationOptions
+from handeye_drake.calibration.rig import RigCamera, calibrate_rig
+from handeye_drake.estimation.rig_bundle import tangent
+from handeye_drake.estimation.se3 import make_transform, rotation_exp
+from handeye_drake.recorded.example_rig import (TRUE_X_BC_CELL, TRUE_X_EC, TRUE_X_EC2,
+                                                generate_example_rig, relative_truth)
+
+#: χ²(6) bound of a 6-dof error whitened by its covariance (1 in 1000 by chance).
+BOUND = float(chi2.ppf(0.999, 6))
+OPTIONS = CalibrationOptions(refine_intrinsics="none")
+#: The knocked camera: 1° and 8 mm off from image 4 on.
+KNOCK = make_transform(rotation_exp(np.radians([0.0, 1.0, 0.0])), [0.008, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rig")
+    cameras = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
+               "cell": ("cell", TRUE_X_BC_CELL), "knocked": ("cell", TRUE_X_BC_CELL)}
+    truth = generate_example_rig(out, seed=3, num_images=8, cameras=cameras,
+                                 moved={"knocked": (4, KNOCK)})
+    return out, truth
+
+
+def _cams(out, truth, names, folders=None):
+    folders = folders or {}
+    return [RigCamera(n, out / folders.get(n, n), truth["cameras"][n]["mount"],
+                      str(out / folders.get(n, n) / "intrinsics.yaml")) for n in names]
+
+
+def _nees(X, C, X_true):
+    e = tangent(X, X_true)
+    return float(e @ np.linalg.solve(C, e))
+
+
+def _check_within_sigma(result, truth):
+    for name, c in result.cameras.items():
+        assert c.verdict.status != "FAIL", (name, c.verdict.reasons)
+        X_true = np.asarray(truth["cameras"][name][c.key])
+        assert _nees(c.X, c.covariance, X_true) < BOUND, name
+        # The camera's σ are not vacuous: a few mm at most (cell camera: one view at 0.9 m).
+        assert np.max(c.sigma()[1]) < (0.004 if c.mount == "cell" else 0.001), name
+
+
+def test_three_camera_mixed_rig_within_sigma(rig):
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist", "wrist2", "cell"]), out / "robot_poses.tum",
+                      truth["target"], options=OPTIONS)
+    assert r.verdict.status in ("OK", "WARN"), r.lines()
+    _check_within_sigma(r, truth)
+    X, C = r.relative[("wrist", "wrist2")]
+    assert _nees(X, C, relative_truth(truth, "wrist", "wrist2")) < BOUND
+    # The camera-to-camera σ has no robot term: it is tighter than either camera's.
+    assert np.trace(C[3:, 3:]) < np.trace(r.cameras["wrist"].covariance[3:, 3:])
+    assert np.linalg.norm(tangent(r.X_board, np.asarray(truth["X_BT"]))[3:]) < 0.001
+    j = r.to_json()
+    assert set(j["cameras"]) == {"wrist", "wrist2", "cell"} and j["relative"][0]["from"] == "wrist"
+    texts = r.export("cell", "urdf,ros2")
+    assert "cell_optical_frame" in texts["handeye.urdf"]
+
+
+def test_two_camera_mixed_rig_within_sigma(rig):
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist2", "cell"]), out / "robot_poses.tum",
+                      truth["target"], options=OPTIONS)
+    assert r.verdict.status in ("OK", "WARN"), r.lines()
+    _check_within_sigma(r, truth)
+    assert not r.relative          # one on the hand, one in the cell: no fixed transform
+
+
+def test_camera_that_never_sees_the_board_is_named(rig, tmp_path):
+    out, truth = rig
+    blank = tmp_path / "blank"
+    blank.mkdir()
+    for k in range(8):
+        cv2.imwrite(str(blank / f"img_{k:03d}.png"), np.full((480, 640), 80, np.uint8))
+    cams = _cams(out, truth, ["wrist", "cell"]) + [
+        RigCamera("blind", blank, "hand", str(out / "wrist" / "intrinsics.yaml"))]
+    r = calibrate_rig(cams, out / "robot_poses.tum", truth["target"], options=OPTIONS)
+    assert r.verdict.status == "FAIL"
+    assert r.cameras["blind"].verdict.status == "FAIL" and r.cameras["blind"].X is None
+    assert "camera blind does not see the board" in r.verdict.reasons[0].message
+    # The others are still calibrated, within σ.
+    assert r.cameras["wrist"].verdict.status != "FAIL" and r.cameras["cell"].X is not None
+    assert _nees(r.cameras["wrist"].X, r.cameras["wrist"].covariance,
+                 TRUE_X_EC) < BOUND
+
+
+def test_swapped_folders_are_named(rig):
+    out, truth = rig
+    cams = _cams(out, truth, ["wrist", "wrist2", "cell"],
+                 folders={"wrist2": "cell", "cell": "wrist2"})
+    r = calibrate_rig(cams, out / "robot_poses.tum", truth["target"], options=OPTIONS)
+    assert r.verdict.status == "FAIL"
+    assert r.cameras["cell"].verdict.reasons[0].code == "fixed_view_moves"
+    assert "swapped" in r.cameras["cell"].verdict.reasons[0].message
+    assert r.cameras["wrist2"].verdict.status == "FAIL"
+    assert r.cameras["wrist"].verdict.status != "FAIL"
+    assert _nees(r.cameras["wrist"].X, r.cameras["wrist"].covariance, TRUE_X_EC) < BOUND
+
+
+def test_camera_knocked_half_way_is_named(rig):
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist", "knocked"]), out / "robot_poses.tum",
+                      truth["target"], options=OPTIONS)
+    assert r.verdict.status == "FAIL"
+    why = r.cameras["knocked"].verdict.reasons[0]
+    assert why.code == "camera_moved" and "camera knocked moved" in why.message
+    assert "between images 3 and 4" in why.message
+    assert r.cameras["wrist"].verdict.status != "FAIL"
+
+
+def test_rig_camera_arguments_are_checked():
+    with pytest.raises(ValueError, match="mount must be one of"):
+        RigCamera("a", "dir", "wall")
+    with pytest.raises(ValueError, match="camera name"):
+        RigCamera("a:b", "dir")
