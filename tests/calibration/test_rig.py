@@ -127,3 +127,45 @@ def test_rig_camera_arguments_are_checked():
         RigCamera("a", "dir", "wall")
     with pytest.raises(ValueError, match="camera name"):
         RigCamera("a:b", "dir")
+
+
+def _cli(*argv):
+    from handeye_drake.apps.cli import main
+    return main(list(map(str, argv)))
+
+
+def test_command_line_rig_cameras_and_yaml_agree(rig, tmp_path, capsys):
+    out, truth = rig
+    cams = [f"{n}:{out / n}:{truth['cameras'][n]['mount']}:{out / n / 'intrinsics.yaml'}"
+            for n in ("wrist", "cell")]
+    args = ["calibrate", "--robot", out / "robot_poses.tum", "--target", truth["target"],
+            "--refine-intrinsics", "none", "--export", "urdf,ros2,drake"]
+    for c in cams:
+        args += ["--camera", c]
+    assert _cli(*args, "--out", tmp_path / "a") == 0
+    printed = capsys.readouterr().out
+    assert "camera wrist (hand, X_EC)" in printed and "camera cell (cell, X_BC)" in printed
+    a = tmp_path / "a"
+    for n in ("wrist", "cell"):
+        assert (a / n / "calibration.json").is_file() and (a / n / "handeye.urdf").is_file()
+        assert (a / n / "handeye_directives.yaml").is_file()
+    assert "<parent link=\"base_link\"/>" in (a / "cell" / "handeye.urdf").read_text()
+    (tmp_path / "rig.yaml").write_text(
+        f"robot: {out / 'robot_poses.tum'}\ntarget: {truth['target']}\nboard: cell\ncameras:\n"
+        + "".join(f"  {n}: {{images: {out / n}, mount: {truth['cameras'][n]['mount']}, "
+                  f"intrinsics: {out / n / 'intrinsics.yaml'}}}\n" for n in ("wrist", "cell")))
+    assert _cli("calibrate", "--rig", tmp_path / "rig.yaml", "--refine-intrinsics", "none",
+                "--out", tmp_path / "b") == 0
+    import json
+    ja = json.loads((a / "calibration.json").read_text())
+    jb = json.loads((tmp_path / "b" / "calibration.json").read_text())
+    assert ja["cameras"]["cell"]["X_BC"] == jb["cameras"]["cell"]["X_BC"]
+    assert ja["cameras"]["wrist"]["X_EC"] == jb["cameras"]["wrist"]["X_EC"]
+
+
+def test_command_line_rig_bad_camera_is_one_line(rig, tmp_path, capsys):
+    out, truth = rig
+    assert _cli("calibrate", "--robot", out / "robot_poses.tum", "--target", truth["target"],
+                "--camera", f"wrist:{tmp_path / 'missing'}", "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--camera wrist:" in err and "not found" in err
