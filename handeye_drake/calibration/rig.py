@@ -392,10 +392,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
             rig.X_board, rig.board_covariance = fit.X_boards[0], fit.board_covariance(0)
             for i, c in enumerate(cams):
                 c.X, c.covariance = fit.X_cameras[i], fit.camera_covariance(i)
-                if c.mount != board_mount and options.robot_accuracy is not None:
-                    # As the single-camera answer: the robot's constant pose error moves the
-                    # hand-eye answer (not a fixed view's, nor camera-to-camera transforms on
-                    # one mount, where it cancels).
+                if options.robot_accuracy is not None:
+                    # As the single-camera answer: the robot's pose error, constant over the
+                    # recording, moves every camera's answer — a moving camera's about the
+                    # flange, a fixed view's through the board's pose in B (not the
+                    # camera-to-camera transforms on one mount, where it cancels).
                     c.covariance = c.covariance + robot_error_covariance(
                         c.X, options.robot_accuracy)
                 c.intrinsics = fit.intrinsics[i]

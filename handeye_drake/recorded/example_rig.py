@@ -101,9 +101,14 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre):
 
 def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: dict | None = None,
                          distortion: dict | None = None, moved: dict | None = None,
-                         blank=(), pixels_per_metre: float = 2500.0) -> dict:
+                         blank=(), pixels_per_metre: float = 2500.0,
+                         robot_error=(0.0, 0.0)) -> dict:
     """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
-    ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``)."""
+    ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``).
+    ``robot_error`` (deg, m): per-axis RMS of the error of the recorded flange poses, a smooth
+    function of the joint angles (an uncalibrated arm's pose error repeats with its
+    configuration), δ = A sin q + B cos q about and along E; the images are rendered at the true
+    poses."""
     import cv2
     from ..vision.camera_model import CameraIntrinsics
     from ..vision.intrinsics import write_intrinsics_yaml
@@ -154,13 +159,24 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
                             "blank": name in blank}
     lines = ["# handeye_drake example rig: X_BE (flange in robot base), metres; line k goes "
              "with img_k.png of every camera", "# index tx ty tz qx qy qz qw"]
-    lines += [_tum_line(float(k), X) for k, X in enumerate(X_BEs)]
+    recorded = [X.copy() for X in X_BEs]
+    if any(robot_error):
+        from ..estimation.se3 import rotation_exp
+        err_rng = np.random.default_rng(seed + 7919)
+        A, B = err_rng.normal(size=(2, 6, 6)) / math.sqrt(6.0)
+        scale = np.repeat([math.radians(robot_error[0]), robot_error[1]], 3)
+        for k, q in enumerate(qs):
+            d = scale * (A @ np.sin(q) + B @ np.cos(q))
+            recorded[k] = X_BEs[k] @ make_transform(rotation_exp(d[:3]), d[3:])
+    lines += [_tum_line(float(k), X) for k, X in enumerate(recorded)]
     (out / "robot_poses.tum").write_text("\n".join(lines) + "\n")
     truth = {"description": "multi-camera rig rendered by handeye_drake/recorded/example_rig.py",
              "seed": int(seed), "target": format_target(target), "X_BT": X_BT.tolist(),
              "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": width,
                             "height": height},
-             "cameras": truth_cams, "X_BE": [X.tolist() for X in X_BEs]}
+             "cameras": truth_cams, "X_BE": [X.tolist() for X in X_BEs],
+             "robot_error": list(map(float, robot_error)),
+             "X_BE_recorded": [X.tolist() for X in recorded]}
     (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
     return truth
 
