@@ -51,12 +51,15 @@ FIXED_VIEW_TOLERANCE = (0.2, 0.002)
 @dataclass
 class RigCamera:
     """One camera of the rig: ``name``, ``images`` (a directory or files; image k pairs with
-    robot pose k), ``mount`` "hand" (eye-in-hand: X_EC) or "cell" (X_BC), ``intrinsics`` (as
+    robot pose k — or a bag, with ``topic``), ``mount`` "hand" (eye-in-hand: X_EC) or "cell" (X_BC), ``intrinsics`` (as
     ``--intrinsics``; None: calibrated from its images — a fixed view needs them given)."""
     name: str
     images: object
     mount: str = "hand"
     intrinsics: object = None
+    #: With a bag (``images`` its path): the camera's image topic; its images pair with the
+    #: robot's tf in time (as ``calibrate --bag --image-topic``), not by index.
+    topic: str | None = None
 
     def __post_init__(self):
         if not self.name or not str(self.name).replace("_", "").replace("-", "").isalnum():
@@ -184,24 +187,37 @@ def _fail(code, message):
     return Verdict("FAIL", [Reason("FAIL", code, message)])
 
 
-def _fixed_view_check(name, X_CT, lines) -> Reason | None:
+def _fixed_view_check(name, X_CT, lines, covariances=None) -> Reason | None:
     """A camera on the board's mount sees one view: its board poses must agree (module
-    docstring); else it moved during the recording (one jump) or it is not where it is declared
-    (its views change with the robot: on the hand, or another camera's images)."""
+    docstring) — within ``FIXED_VIEW_TOLERANCE`` or 6 σ of the two detections' own uncertainty
+    (a board partly hidden by the arm is measured less well), whichever is larger; else it moved
+    during the recording (one jump) or it is not where it is declared (its views change with the
+    robot: on the hand, or another camera's images)."""
     n = len(X_CT)
     if n < 2:
         return None
     tol_deg, tol_m = FIXED_VIEW_TOLERANCE
+    if covariances is None:
+        sd = np.zeros((n, 2))
+    else:
+        sd = np.array([[math.sqrt(max(np.trace(C[:3, :3]), 0.0)),
+                        math.sqrt(max(np.trace(C[3:, 3:]), 0.0))] if C is not None
+                       else [0.0, 0.0] for C in covariances])
 
-    def spread(group):
-        ref = group[len(group) // 2]
-        d = np.array([tangent(X, ref) for X in group])
-        return max(np.degrees(np.max(np.linalg.norm(d[:, :3], axis=1))) / tol_deg,
-                   np.max(np.linalg.norm(d[:, 3:], axis=1)) / tol_m)
+    def spread(idx):
+        r = idx[len(idx) // 2]
+        worst = 0.0
+        for k in idx:
+            d = tangent(X_CT[k], X_CT[r])
+            allow_r = max(math.radians(tol_deg), 6.0 * math.hypot(sd[k, 0], sd[r, 0]))
+            allow_t = max(tol_m, 6.0 * math.hypot(sd[k, 1], sd[r, 1]))
+            worst = max(worst, np.linalg.norm(d[:3]) / allow_r, np.linalg.norm(d[3:]) / allow_t)
+        return worst
 
-    if spread(X_CT) <= 1.0:
+    every = list(range(n))
+    if spread(every) <= 1.0:
         return None
-    best = min(((max(spread(X_CT[:k]), spread(X_CT[k:])), k) for k in range(2, n - 1)),
+    best = min(((max(spread(every[:k]), spread(every[k:])), k) for k in range(2, n - 1)),
                default=(math.inf, 0))
     if best[0] <= 1.0:
         k = best[1]
@@ -230,22 +246,30 @@ def _start_fixed(X_board, X_CT):
     return X_board @ inverse(ref)
 
 
-def _blocks(cams, board_mount, X_BE_all):
-    """RigBlocks of the cameras (list of CameraResult with streams), camera index = position."""
+def _blocks(cams, board_mount):
+    """RigBlocks of the cameras (list of CameraResult with streams), camera index = position: a
+    moving camera's corners with the robot-side pose its own calibration paired with each image
+    (``corners.corner_data``: by index for image folders, in time for bags), a fixed view's with
+    X_R = I."""
+    from .corners import corner_data
     blocks = []
     for i, c in enumerate(cams):
         s = c.streams
-        lines = np.asarray(s.camera.lines, int) - 1          # image index of each detection
-        X_R = robot_side(c.mount, board_mount, X_BE_all[lines])
-        data = CornerData.from_lists(X_R, [d.object_points for d in s.detections],
-                                     [d.image_points for d in s.detections])
-        blocks.append(RigBlock(i, 0, data, lines, pose_error_frame(c.mount, board_mount),
+        if c.mount == board_mount:
+            data = CornerData.from_lists(np.repeat(np.eye(4)[None], len(s.detections), axis=0),
+                                         [d.object_points for d in s.detections],
+                                         [d.image_points for d in s.detections])
+            instants = np.arange(len(s.detections))
+        else:
+            data, _ = corner_data(c.alone, s.detections)
+            instants = np.asarray(c.alone.aligned.camera_index, int)
+        blocks.append(RigBlock(i, 0, data, instants, pose_error_frame(c.mount, board_mount),
                                c.mount == board_mount))
     return blocks
 
 
-def _joint(cams, board_mount, X_BE_all, X_board0, factors):
-    blocks = _blocks(cams, board_mount, X_BE_all)
+def _joint(cams, board_mount, X_board0, factors):
+    blocks = _blocks(cams, board_mount)
     px0 = [max(float(np.median([d.reprojection_rms_px for d in c.streams.detections])) /
                math.sqrt(2), 0.05) for c in cams]
     fit = fit_rig(blocks, [c.X for c in cams], [X_board0], [c.intrinsics for c in cams],
@@ -253,35 +277,40 @@ def _joint(cams, board_mount, X_BE_all, X_board0, factors):
     return fit
 
 
-def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=None) -> RigResult:
+def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=None,
+                  robot_frames: str = "base_link:tool0") -> RigResult:
     """Calibrates the rig (module docstring).
 
     Args:
         cameras: ``RigCamera`` list (distinct names).
-        robot: the robot pose file (X_BE), one pose per image index.
+        robot: the robot pose file (X_BE), one pose per image index (None when every camera
+            reads a bag: the robot's poses are its tf, ``robot_frames`` BASE:EE).
         target: the board spec (e.g. ``charuco:7x5:0.04:0.03:DICT_5X5_100``).
         board_mount: "cell" (the board fixed in the cell: X_BT) or "hand" (on the flange: X_ET).
         options: ``api.CalibrationOptions`` (its mode is ignored: each camera's mount decides).
     """
     from .api import CalibrationOptions
     from .corners import calibrate_images
-    from .inputs import image_streams
-    from ..recorded.formats import read_poses, infer_format
+    from .inputs import bag_image_streams, image_streams
     options = options or CalibrationOptions()
     if board_mount not in MOUNTS:
         raise ValueError(f"board_mount: expected one of {MOUNTS}, got {board_mount!r}")
     names = [c.name for c in cameras]
     if len(set(names)) != len(names) or not cameras:
         raise ValueError(f"cameras: expected distinct names, got {names}")
-    robot_all = read_poses(robot, "robot", infer_format(robot), False, 1.0)
-    X_BE_all = np.asarray(robot_all.poses)
+    if robot is None and any(c.topic is None for c in cameras):
+        raise ValueError("robot: the robot poses (X_BE) are needed with image folders")
     results, moving, fixed = {}, [], []
     for cam in cameras:
         res = CameraResult(cam.name, cam.mount, Verdict("OK"))
         results[cam.name] = res
         try:
-            s = image_streams([str(cam.images)] if isinstance(cam.images, (str, Path))
-                              else cam.images, robot, target, cam.intrinsics)
+            if cam.topic is not None:
+                s = bag_image_streams(cam.images, robot_frames, cam.topic, target,
+                                      cam.intrinsics)
+            else:
+                s = image_streams([str(cam.images)] if isinstance(cam.images, (str, Path))
+                                  else cam.images, robot, target, cam.intrinsics)
         except ValueError as e:
             res.verdict = _fail("no_board", f"camera {cam.name}: {e}" if "found in only" not in
                                 str(e) else f"camera {cam.name} does not see the board: {e}")
@@ -297,7 +326,8 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                                     "(--camera NAME:DIR:MOUNT:INTRINSICS)")
                 continue
             why = _fixed_view_check(cam.name, np.asarray(s.camera.poses),
-                                    list(np.asarray(s.camera.lines, int) - 1))
+                                    list(np.asarray(s.camera.lines, int) - 1),
+                                    [getattr(d, "covariance", None) for d in s.detections])
             if why is not None:
                 res.verdict = Verdict("FAIL", [why])
                 continue
@@ -342,7 +372,7 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         for c in moving:
             others = [o for o in moving if o is not c]
             try:
-                f = _joint(others, board_mount, X_BE_all, X_board0,
+                f = _joint(others, board_mount, X_board0,
                            [factors[o.name] for o in others])
             except ValueError:
                 continue
@@ -381,7 +411,7 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         cams = []
     if cams:
         try:
-            fit = _joint(cams, board_mount, X_BE_all, X_board0,
+            fit = _joint(cams, board_mount, X_board0,
                          [factors.get(c.name, 1.0) for c in cams])
         except ValueError as e:
             for c in cams:

@@ -181,6 +181,46 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     return truth
 
 
+def write_rig_bag(rig_dir, path, storage: str = "mcap", names=None, period: float = 1.2,
+                  latency: float = 0.035, tf_rate: float = 50.0) -> dict:
+    """A ROS bag of a rendered rig (``generate_example_rig``'s ``rig_dir``): the flange passes
+    through pose k at t_k = 1 + ``period``·k s (moving between the poses at constant speed, as
+    ``example_bag``), ``/tf`` ``base_link`` → ``tool0`` at ``tf_rate`` Hz (the recorded, possibly
+    erroneous poses), and per camera NAME its images on ``/NAME/image_raw`` (mono8) with a
+    ``CameraInfo`` on ``/NAME/camera_info``, stamped ``latency`` s after t_k. Returns {name:
+    topic}."""
+    import cv2
+    from ..vision.intrinsics import load_intrinsics
+    from .example_bag import BagWriter, _ns, _robot_pose
+    rig_dir = Path(rig_dir)
+    truth = json.loads((rig_dir / "truth.json").read_text())
+    names = list(truth["cameras"]) if names is None else list(names)
+    X_BE = np.array(truth["X_BE_recorded"])
+    knots = 1.0 + period * np.arange(len(X_BE))
+    b = BagWriter(path, storage)
+    tf = "tf2_msgs/msg/TFMessage"
+    for i in range(int(round((knots[-1] + 1.0) * tf_rate)) + 1):
+        t = i / tf_rate
+        ns = _ns(t)
+        b.add("/tf", tf, ns + 2_000_000, b.tf([b.transform(ns, "base_link", "tool0",
+                                                           _robot_pose(t, knots, X_BE))]))
+    topics = {}
+    for name in names:
+        topic = f"/{name}/image_raw"
+        topics[name] = topic
+        intr = load_intrinsics(rig_dir / name / "intrinsics.yaml")
+        for k, t in enumerate(knots):
+            grey = cv2.imread(str(rig_dir / name / f"img_{k:03d}.png"), cv2.IMREAD_GRAYSCALE)
+            stamp = _ns(t + latency)
+            b.add(topic, "sensor_msgs/msg/Image", stamp + 15_000_000,
+                  b.image(stamp, f"{name}_optical_frame", grey, "mono8"))
+            b.add(f"/{name}/camera_info", "sensor_msgs/msg/CameraInfo", stamp + 15_000_000,
+                  b.camera_info(stamp, f"{name}_optical_frame", intr.K, intr.distortion,
+                                intr.width, intr.height))
+    b.write()
+    return topics
+
+
 def relative_truth(truth: dict, a: str, b: str) -> np.ndarray | None:
     """True X_{C_a C_b} of two cameras on the same mount (None across mounts)."""
     ca, cb = truth["cameras"][a], truth["cameras"][b]

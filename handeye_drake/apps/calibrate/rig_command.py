@@ -3,9 +3,13 @@
     handeye-drake calibrate --robot FILE --target SPEC \\
         --camera wrist:DIR[:hand|cell[:INTRINSICS]] --camera cell:DIR:cell:cell.yaml ...
     handeye-drake calibrate --rig rig.yaml
+    handeye-drake calibrate --bag PATH --robot-frames base_link:tool0 --target SPEC \\
+        --camera wrist:/wrist/image_raw:hand --camera cell:/cell/image_raw:cell
 
-Image k of every camera pairs with robot pose k. ``--board-mount`` says where the board is
-(cell: X_BT, default; hand: X_ET). A rig YAML holds the same (paths relative to the file)::
+Image k of every camera pairs with robot pose k; from a bag, each camera's images pair with the
+robot's tf in time (its clock offset estimated, as ``--bag --image-topic``). ``--board-mount``
+says where the board is (cell: X_BT, default; hand: X_ET). A rig YAML holds the same (paths
+relative to the file)::
 
     robot: robot_poses.tum
     target: charuco:7x5:0.04:0.03:DICT_5X5_100
@@ -37,17 +41,21 @@ def is_rig_camera(text: str) -> bool:
                 and not Path(text).is_file())
 
 
-def parse_rig_camera(text: str) -> RigCamera:
-    """``NAME:DIR[:MOUNT[:INTRINSICS]]`` → ``RigCamera`` (ValueError naming ``--camera``)."""
+def parse_rig_camera(text: str, bag=None) -> RigCamera:
+    """``NAME:DIR[:MOUNT[:INTRINSICS]]`` → ``RigCamera`` (ValueError naming ``--camera``); with
+    ``bag``, ``NAME:TOPIC[:MOUNT[:INTRINSICS]]`` (the camera's image topic in the bag)."""
     parts = str(text).split(":")
     name, folder = parts[0], parts[1] if len(parts) > 1 else ""
     mount = parts[2] if len(parts) > 2 and parts[2] else "hand"
     intrinsics = ":".join(parts[3:]) or None
     if not folder:
-        raise ValueError(f"--camera {text}: expected NAME:DIR[:hand|cell[:INTRINSICS]]")
-    if not Path(folder).exists():
+        raise ValueError(f"--camera {text}: expected NAME:{'TOPIC' if bag else 'DIR'}"
+                         "[:hand|cell[:INTRINSICS]]")
+    if bag is None and not Path(folder).exists():
         raise ValueError(f"--camera {text}: {folder} not found")
     try:
+        if bag is not None:
+            return RigCamera(name, bag, mount, intrinsics, topic=folder)
         return RigCamera(name, folder, mount, intrinsics)
     except ValueError as e:
         raise ValueError(f"--camera {text}: {e}") from None
@@ -92,28 +100,30 @@ def run_rig_command(args, rig_cameras, options) -> int:
     when ``--camera NAME:DIR`` or ``--rig`` is given)."""
     from ..outputs import prepare_output_dir
     robot, target, board = args.robot, args.target, getattr(args, "board_mount", None)
-    cams = [parse_rig_camera(t) for t in rig_cameras]
+    cams = [parse_rig_camera(t, args.bag) for t in rig_cameras]
     if getattr(args, "rig", None):
         doc = read_rig_yaml(args.rig)
         cams += doc["cameras"]
         robot, target = robot or doc["robot"], target or doc["target"]
         board = board or doc["board"]
     board = board or "cell"
-    if not robot:
-        raise ValueError("--robot: the robot poses (X_BE) are needed with a rig")
+    if not robot and not args.bag:
+        raise ValueError("--robot: the robot poses (X_BE) are needed with a rig of image "
+                         "folders")
     if not target:
         raise ValueError("--target: the calibration target is needed with a rig (e.g. "
                          "charuco:7x5:0.04:0.03:DICT_5X5_100)")
     if board not in ("cell", "hand"):
         raise ValueError(f"--board-mount: expected cell or hand, got {board!r}")
-    if args.images or args.bag:
+    if args.images:
         raise ValueError("--camera NAME:DIR: a rig takes its images from each camera's "
-                         "directory; leave out --images and --bag")
+                         "directory; leave out --images")
     names = [c.name for c in cams]
     if len(set(names)) != len(names):
         raise ValueError(f"--camera: camera names must differ, got {', '.join(names)}")
     out = prepare_output_dir(args.out, "calibrate", args.force)
-    result = calibrate_rig(cams, robot, target, board, options)
+    result = calibrate_rig(cams, robot, target, board, options,
+                           robot_frames=args.robot_frames)
     written = []
     p = out.path("calibration.json")
     p.write_text(json.dumps(result.to_json(), indent=1) + "\n")
