@@ -234,6 +234,35 @@ def _fixed_view_check(name, X_CT, lines, covariances=None) -> Reason | None:
                   "topics or folders)?")
 
 
+def _moved_checks(results, moving, board_mount) -> None:
+    """A moving camera that moved on its mount half-way: with the board placed by another
+    camera, each of its images gives its own mount pose X_c,k = X_R,k⁻¹ · X_b · X_CT,k⁻¹; a
+    single jump in them (``_fixed_view_check``'s test) names the move, which the camera alone may
+    only see as residuals too large. Cameras FAILed alone get the named cause first."""
+    ok = [c for c in moving]
+    for c in results.values():
+        if c.alone is None or c.mount == board_mount:
+            continue
+        others = [o for o in ok if o is not c]
+        if not others:
+            continue
+        X_b = others[0].alone.X_fixed
+        a = c.alone.aligned
+        X_R = np.asarray(a.X_BE)
+        X_CT = np.asarray(a.X_CT)
+        X_c = np.array([inverse(R) @ X_b @ inverse(T) for R, T in zip(X_R, X_CT)])
+        dets = c.streams.detections
+        covs = [getattr(dets[int(k)], "covariance", None) for k in a.camera_index]
+        why = _fixed_view_check(c.name, X_c, list(np.asarray(a.camera_lines, int) - 1), covs)
+        if why is not None and why.code == "camera_moved":
+            why = Reason("FAIL", "camera_moved", why.message.replace(
+                "its view of the board jumps", f"its pose on the {c.mount} (from the board as "
+                f"camera {others[0].name} places it) jumps"))
+            c.verdict = Verdict("FAIL", [why] + [r for r in c.verdict.reasons])
+            if c in moving:
+                moving.remove(c)
+
+
 def _settings(options, streams, mode):
     s = options.stream_settings(streams, True)
     s["mode"] = mode
@@ -353,6 +382,8 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                 res.intrinsics = alone.corners.fit.intrinsics.copy()
                 res.intrinsics_model = alone.corners.model
             moving.append(res)
+    _moved_checks(results, moving, board_mount)
+    moving = [c for c in moving if c.verdict.status != "FAIL"]
     rig = RigResult(results, board_mount, Verdict("OK"))
     if not moving:
         rig.verdict = _fail("no_moving_camera",
@@ -443,10 +474,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
     warns = [r for c in results.values() for r in c.verdict.reasons if r.level == "WARN"]
     failed = [n for n, c in results.items() if c.verdict.status == "FAIL"]
     if failed:
+        first = [results[n].verdict.reasons[0].message for n in failed
+                 if results[n].verdict.reasons]
         rig.verdict = Verdict("FAIL", [Reason(
             "FAIL", "cameras", f"camera{'s' * (len(failed) > 1)} {', '.join(failed)} "
-            f"FAIL{'' if len(failed) > 1 else 's'}: " + "; ".join(
-                r.message for r in reasons[:3]))] + reasons)
+            f"FAIL{'' if len(failed) > 1 else 's'}: " + "; ".join(first))] + reasons)
     else:
         rig.verdict = Verdict("WARN" if warns else "OK", warns)
     if any(c.mount == board_mount for c in cams):

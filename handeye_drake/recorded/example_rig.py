@@ -72,7 +72,8 @@ def _distort(image, K, dist):
                      borderMode=cv2.BORDER_REPLICATE)
 
 
-def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre):
+def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
+            supersample=SUPERSAMPLE):
     """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras)."""
     import cv2
     from pydrake.systems.framework import DiagramBuilder
@@ -86,7 +87,7 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre):
     for name, (mount, X) in cameras.items():
         frame = arm.ee_frame if mount == "hand" else arm.plant.world_frame()
         handles[name] = mount_rendered_camera(
-            builder, arm.scene_graph, arm.plant, frame, X, intrinsics, supersample=SUPERSAMPLE,
+            builder, arm.scene_graph, arm.plant, frame, X, intrinsics, supersample=supersample,
             clipping_near=0.05, clipping_far=3.0, background=BACKGROUND, name=f"rig_{name}")
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
@@ -102,13 +103,13 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre):
 def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: dict | None = None,
                          distortion: dict | None = None, moved: dict | None = None,
                          blank=(), pixels_per_metre: float = 2500.0,
-                         robot_error=(0.0, 0.0)) -> dict:
+                         robot_error=(0.0, 0.0), supersample: int = SUPERSAMPLE) -> dict:
     """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
     ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``).
     ``robot_error`` (deg, m): per-axis RMS of the error of the recorded flange poses, a smooth
     function of the joint angles (an uncalibrated arm's pose error repeats with its
     configuration), δ = A sin q + B cos q about and along E; the images are rendered at the true
-    poses."""
+    poses. ``supersample``: anti-aliasing factor of the renderer (k × k samples per pixel)."""
     import cv2
     from ..vision.camera_model import CameraIntrinsics
     from ..vision.intrinsics import write_intrinsics_yaml
@@ -127,12 +128,12 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     fx, fy, cx, cy, width, height = INTRINSICS
     pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
                                distortion=(0.0,) * 5)
-    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre)
+    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre, supersample)
     if moved:
         first = min(int(k) for k, _ in moved.values())
         after = _render({n: (cameras[n][0], cameras[n][1] @ np.asarray(d, float))
                          for n, (_, d) in moved.items()}, qs[first:], pinhole, X_BT, target,
-                        pixels_per_metre)
+                        pixels_per_metre, supersample)
         for n, (k, _) in moved.items():
             images[n][k:] = after[n][k - first:]
     truth_cams = {}

@@ -28,9 +28,11 @@ KNOCK = make_transform(rotation_exp(np.radians([0.0, 1.0, 0.0])), [0.008, 0.0, 0
 def rig(tmp_path_factory):
     out = tmp_path_factory.mktemp("rig")
     cameras = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
-               "cell": ("cell", TRUE_X_BC_CELL), "knocked": ("cell", TRUE_X_BC_CELL)}
+               "cell": ("cell", TRUE_X_BC_CELL), "knocked": ("cell", TRUE_X_BC_CELL),
+               "slipped": ("hand", TRUE_X_EC2)}
     truth = generate_example_rig(out, seed=3, num_images=8, cameras=cameras,
-                                 moved={"knocked": (4, KNOCK)})
+                                 moved={"knocked": (4, KNOCK), "slipped": (4, KNOCK)},
+                                 supersample=2)
     return out, truth
 
 
@@ -120,6 +122,17 @@ def test_camera_knocked_half_way_is_named(rig):
     assert why.code == "camera_moved" and "camera knocked moved" in why.message
     assert "between images 3 and 4" in why.message
     assert r.cameras["wrist"].verdict.status != "FAIL"
+
+
+def test_hand_camera_that_slipped_half_way_is_named(rig):
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist", "slipped"]), out / "robot_poses.tum",
+                      truth["target"], options=OPTIONS)
+    why = r.cameras["slipped"].verdict.reasons[0]
+    assert r.verdict.status == "FAIL" and why.code == "camera_moved"
+    assert "camera slipped moved" in why.message and "between images 3 and 4" in why.message
+    assert r.cameras["wrist"].verdict.status != "FAIL"
+    assert _nees(r.cameras["wrist"].X, r.cameras["wrist"].covariance, TRUE_X_EC) < BOUND
 
 
 def test_rig_camera_arguments_are_checked():
