@@ -1,8 +1,7 @@
 """The joint corner-level fit of a rig (``estimation.rig_bundle``) on synthetic corners: two cell
 cameras watching a board on the flange (eye-to-hand, the board shared) and a hand camera
 watching a board in the cell (corners kept wherever they project: no image bounds), fitted in one
-problem; answers within σ; a camera whose board no
-other camera places is refused."""
+problem; answers within σ; a camera whose board no other camera places is refused."""
 
 import math
 
