@@ -3,6 +3,7 @@ and cell cameras watching one board fixed in the cell (mixed modes), rendered on
 each answer within its σ of the truth, and bad rigs (a camera that never sees the board, swapped
 folders, a camera knocked half-way) FAIL naming the camera."""
 
+import dataclasses
 import math
 
 import cv2
@@ -133,6 +134,21 @@ def test_hand_camera_that_slipped_half_way_is_named(rig):
     assert "camera slipped moved" in why.message and "between images 3 and 4" in why.message
     assert r.cameras["wrist"].verdict.status != "FAIL"
     assert _nees(r.cameras["wrist"].X, r.cameras["wrist"].covariance, TRUE_X_EC) < BOUND
+
+
+def test_camera_with_wrong_intrinsics_is_named(rig):
+    out, truth = rig
+    i = truth["intrinsics"]
+    wrong = f"{1.03 * i['fx']},{1.03 * i['fy']},{i['cx']},{i['cy']}"     # focal 3 % long
+    cams = _cams(out, truth, ["wrist", "cell"]) + [
+        RigCamera("wrist2", out / "wrist2", "hand", wrong)]
+    r = calibrate_rig(cams, out / "robot_poses.tum", truth["target"], options=OPTIONS)
+    why = r.cameras["wrist2"].verdict.reasons[0]
+    assert r.verdict.status == "FAIL" and why.code == "intrinsics"
+    assert why.message.startswith("camera wrist2: the intrinsics given do not fit the images")
+    assert r.cameras["cell"].verdict.status != "FAIL"
+    _check_within_sigma(dataclasses.replace(r, cameras={n: r.cameras[n]
+                                                        for n in ("wrist", "cell")}), truth)
 
 
 def test_rig_camera_arguments_are_checked():
