@@ -26,7 +26,6 @@ X_{C_a C_b} for two cameras on one mount. Covariances [δθ (rad); δt (m)], R =
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,9 +34,8 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..estimation.reprojection import CornerData, intrinsics_matrix, intrinsics_vector
-from ..estimation.rig_bundle import (MOUNTS, RigBlock, fit_rig, pose_error_frame, robot_side,
-                                     tangent)
-from ..estimation.se3 import inverse, rotation_log
+from ..estimation.rig_bundle import MOUNTS, RigBlock, fit_rig, pose_error_frame, tangent
+from ..estimation.se3 import inverse
 from .checks import Reason, Verdict
 from .pipeline import robot_error_covariance
 

@@ -29,10 +29,8 @@ Ports (12-vectors are ``pose_to_vector`` [vec_row(R); p]):
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.systems.framework import EventStatus, LeafSystem
 
 from ..estimation.se3 import inverse, pose_to_vector, retract_pose, rotation_log, vector_to_pose
 from ..estimation.validation import as_transform, check_positive

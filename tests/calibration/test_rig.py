@@ -4,7 +4,6 @@ each answer within its σ of the truth, and bad rigs (a camera that never sees t
 folders, a camera knocked half-way) FAIL naming the camera."""
 
 import dataclasses
-import math
 
 import cv2
 import numpy as np
