@@ -58,6 +58,17 @@ TRUE_X_BC_CELL = _look_at([-1.05, -0.62, 0.62], [-0.50, -0.15, 0.0]) @ make_tran
 DEFAULT_RIG = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
                "cell": ("cell", TRUE_X_BC_CELL)}
 
+#: A board on the flange (``board_mount="hand"``): 15 × 12 cm on a bracket 9 cm beside the flange
+#: along x_E, upright (its normal along x_E, printed face out), spanning y_E and z_E.
+HAND_TARGET_SPEC = "charuco:5x4:0.03:0.022:DICT_5X5_100"
+TRUE_X_ET = make_transform(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]),
+                           [0.09, -0.075, 0.10])
+#: Two cell cameras at the height of the flange, 0.8 m from the board, 40° apart, looking at it.
+TRUE_X_BC_A = _look_at([-0.90, 0.52, 0.50], [-0.47, -0.15, 0.45])
+TRUE_X_BC_B = _look_at([-0.37, 0.64, 0.50], [-0.47, -0.15, 0.45])
+#: The rig of a board on the flange: two cell cameras (eye-to-hand).
+HAND_BOARD_RIG = {"cell_a": ("cell", TRUE_X_BC_A), "cell_b": ("cell", TRUE_X_BC_B)}
+
 
 def _distort(image, K, dist):
     """The pinhole image as seen through OpenCV's distortion model ``dist`` (same K)."""
@@ -73,8 +84,9 @@ def _distort(image, K, dist):
 
 
 def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
-            supersample=SUPERSAMPLE):
-    """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras)."""
+            supersample=SUPERSAMPLE, X_ET=None):
+    """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras); the
+    board at X_BT in the cell, or at ``X_ET`` on the flange when given."""
     import cv2
     from pydrake.systems.framework import DiagramBuilder
 
@@ -82,7 +94,19 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
     from ..systems.rendered_camera import add_target_geometry, mount_rendered_camera
     builder = DiagramBuilder()
     arm = add_arm(builder, q0=_HOME_Q)
-    add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
+    if X_ET is None:
+        add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
+    else:
+        plant = arm.plant
+        body = arm.ee_frame.body() if hasattr(arm.ee_frame, "body") else \
+            plant.GetFrameByName(arm.ee_frame).body()
+        frame = arm.ee_frame if hasattr(arm.ee_frame, "body") else \
+            plant.GetFrameByName(arm.ee_frame)
+        X_body_E = frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
+        add_target_geometry(arm.scene_graph, target, X_body_E @ np.asarray(X_ET),
+                            pixels_per_metre=pixels_per_metre,
+                            frame_id=plant.GetBodyFrameIdOrThrow(body.index()),
+                            source_id=plant.get_source_id())
     handles = {}
     for name, (mount, X) in cameras.items():
         frame = arm.ee_frame if mount == "hand" else arm.plant.world_frame()
@@ -103,19 +127,26 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
 def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: dict | None = None,
                          distortion: dict | None = None, moved: dict | None = None,
                          blank=(), pixels_per_metre: float = 2500.0,
-                         robot_error=(0.0, 0.0), supersample: int = SUPERSAMPLE) -> dict:
+                         robot_error=(0.0, 0.0), supersample: int = SUPERSAMPLE,
+                         board_mount: str = "cell") -> dict:
     """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
     ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``).
     ``robot_error`` (deg, m): per-axis RMS of the error of the recorded flange poses, a smooth
     function of the joint angles (an uncalibrated arm's pose error repeats with its
     configuration), δ = A sin q + B cos q about and along E; the images are rendered at the true
-    poses. ``supersample``: anti-aliasing factor of the renderer (k × k samples per pixel)."""
+    poses. ``supersample``: anti-aliasing factor of the renderer (k × k samples per pixel).
+    ``board_mount`` "hand": the board ``HAND_TARGET_SPEC`` rides on the flange at ``TRUE_X_ET``
+    (default cameras ``HAND_BOARD_RIG``), not on the table."""
     import cv2
     from ..vision.camera_model import CameraIntrinsics
     from ..vision.intrinsics import write_intrinsics_yaml
     from ..vision.targets import format_target, parse_target
 
-    cameras = dict(DEFAULT_RIG if cameras is None else cameras)
+    if board_mount not in ("cell", "hand"):
+        raise ValueError(f"board_mount: expected 'cell' or 'hand', got {board_mount!r}")
+    hand_board = board_mount == "hand"
+    cameras = dict((HAND_BOARD_RIG if hand_board else DEFAULT_RIG) if cameras is None
+                   else cameras)
     for name, (mount, _) in cameras.items():
         if mount not in ("hand", "cell"):
             raise ValueError(f"cameras[{name!r}]: mount must be 'hand' or 'cell', got {mount!r}")
@@ -123,17 +154,18 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     qs, X_BEs = sample_robot_poses(seed, num_images)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    target = parse_target(TARGET_SPEC)
-    X_BT = _target_pose(target)
+    X_BT = _target_pose(parse_target(TARGET_SPEC))
+    target = parse_target(HAND_TARGET_SPEC if hand_board else TARGET_SPEC)
+    X_ET = TRUE_X_ET if hand_board else None
     fx, fy, cx, cy, width, height = INTRINSICS
     pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
                                distortion=(0.0,) * 5)
-    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre, supersample)
+    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre, supersample, X_ET)
     if moved:
         first = min(int(k) for k, _ in moved.values())
         after = _render({n: (cameras[n][0], cameras[n][1] @ np.asarray(d, float))
                          for n, (_, d) in moved.items()}, qs[first:], pinhole, X_BT, target,
-                        pixels_per_metre, supersample)
+                        pixels_per_metre, supersample, X_ET)
         for n, (k, _) in moved.items():
             images[n][k:] = after[n][k - first:]
     truth_cams = {}
@@ -172,7 +204,8 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     lines += [_tum_line(float(k), X) for k, X in enumerate(recorded)]
     (out / "robot_poses.tum").write_text("\n".join(lines) + "\n")
     truth = {"description": "multi-camera rig rendered by handeye_drake/recorded/example_rig.py",
-             "seed": int(seed), "target": format_target(target), "X_BT": X_BT.tolist(),
+             "seed": int(seed), "target": format_target(target), "board_mount": board_mount,
+             **({"X_ET": X_ET.tolist()} if hand_board else {"X_BT": X_BT.tolist()}),
              "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": width,
                             "height": height},
              "cameras": truth_cams, "X_BE": [X.tolist() for X in X_BEs],

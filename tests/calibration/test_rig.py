@@ -220,3 +220,26 @@ def test_rig_from_a_bag_with_an_image_topic_per_camera(rig, tmp_path):
     import json
     j = json.loads((tmp_path / "o" / "calibration.json").read_text())
     assert np.allclose(j["cameras"]["cell"]["X_BC"], r.cameras["cell"].X, atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def hand_board_rig(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rig_hand_board")
+    truth = generate_example_rig(out, seed=3, num_images=10, board_mount="hand", supersample=2)
+    return out, truth
+
+
+def test_two_cell_cameras_sharing_a_board_on_the_flange_within_sigma(hand_board_rig, tmp_path):
+    """Two cameras fixed in the cell watch one board on the flange (eye-to-hand, both can
+    calibrate alone; the arm hides the board in some images): jointly, each within σ, and the
+    transform between them."""
+    out, truth = hand_board_rig
+    cams = _cams(out, truth, ["cell_a", "cell_b"])
+    r = calibrate_rig(cams, out / "robot_poses.tum", truth["target"], board_mount="hand",
+                      options=OPTIONS)
+    assert r.verdict.status in ("OK", "WARN"), r.lines()
+    _check_within_sigma(r, truth)
+    assert all(c.alone is not None for c in r.cameras.values())
+    X, C = r.relative[("cell_a", "cell_b")]
+    assert _nees(X, C, relative_truth(truth, "cell_a", "cell_b")) < BOUND
+    assert np.linalg.norm(tangent(r.X_board, np.asarray(truth["X_ET"]))[3:]) < 0.002
