@@ -15,6 +15,10 @@ frames keep the pairing by index). On the same images:
   view of a fixed board and cannot be calibrated alone;
 - joint: ``calibration.rig.calibrate_rig`` (the board's pose one unknown for every camera).
 
+``--rig flange``: two cameras fixed in the cell (``cell_a``, ``cell_b``, 40° apart at 0.8 m)
+watch a 15 × 12 cm board on a bracket on the flange (eye-to-hand: each can be calibrated alone;
+the arm hides the board in some images).
+
 Printed per seed and camera: the error to the truth (rotation deg, translation mm) of X_EC / X_BC
 and of the camera-to-camera transform X_wrist_wrist2 (separate: X_EC,1⁻¹ X_EC,2 of the two
 separate answers), with each answer's σ (norms of the per-axis values) and its NEES (error
@@ -57,29 +61,43 @@ def _relative_separate(a, b):
     return f.relative(0, 1)
 
 
-def render(tmp, seed, images, robot_error):
+#: The pair of cameras on one mount whose transform is compared, per rig.
+PAIRS = {"table": ("wrist", "wrist2"), "flange": ("cell_a", "cell_b")}
+
+
+def render(tmp, seed, images, robot_error, rig="table"):
     t0 = time.perf_counter()
-    truth = generate_example_rig(tmp, seed=seed, num_images=images, distortion=DISTORTION,
-                                 robot_error=robot_error)
+    if rig == "table":
+        truth = generate_example_rig(tmp, seed=seed, num_images=images, distortion=DISTORTION,
+                                     robot_error=robot_error)
+    else:
+        truth = generate_example_rig(tmp, seed=seed, num_images=images, robot_error=robot_error,
+                                     board_mount="hand")
     return truth, time.perf_counter() - t0
 
 
-def run(tmp, truth, refine, wrist2_images):
-    """Separate and joint answers with wrist2 seeing the board in its first ``wrist2_images``
-    images only (it looks away after them: blank frames keep the pairing by index)."""
+def run(tmp, truth, refine, wrist2_images, rig="table"):
+    """Separate and joint answers; on the table rig with wrist2 seeing the board in its first
+    ``wrist2_images`` images only (it looks away after them: blank frames keep the pairing by
+    index)."""
     import cv2
     images = len(truth["X_BE"])
-    folder = Path(tmp) / f"wrist2_{wrist2_images}"
-    shutil.copytree(Path(tmp) / "wrist2", folder, dirs_exist_ok=True)
-    for k in range(wrist2_images, images):
-        path = str(folder / f"img_{k:03d}.png")
-        cv2.imwrite(path, np.full_like(cv2.imread(path, 0), 80))
-    dirs = {"wrist": Path(tmp) / "wrist", "wrist2": folder, "cell": Path(tmp) / "cell"}
+    dirs = {n: Path(tmp) / n for n in truth["cameras"]}
+    if rig == "table":
+        folder = Path(tmp) / f"wrist2_{wrist2_images}"
+        shutil.copytree(Path(tmp) / "wrist2", folder, dirs_exist_ok=True)
+        for k in range(wrist2_images, images):
+            path = str(folder / f"img_{k:03d}.png")
+            cv2.imwrite(path, np.full_like(cv2.imread(path, 0), 80))
+        dirs["wrist2"] = folder
     cams = [RigCamera(n, dirs[n], c["mount"], str(dirs[n] / "intrinsics.yaml"))
             for n, c in truth["cameras"].items()]
     t0 = time.perf_counter()
-    rig = calibrate_rig(cams, f"{tmp}/robot_poses.tum", truth["target"],
-                        options=CalibrationOptions(refine_intrinsics=refine))
+    rig_result = calibrate_rig(cams, f"{tmp}/robot_poses.tum", truth["target"],
+                               board_mount=truth.get("board_mount", "cell"),
+                               options=CalibrationOptions(refine_intrinsics=refine))
+    pair = PAIRS[rig]
+    rig = rig_result
     t_fit = time.perf_counter() - t0
     rows = {}
     for name, c in rig.cameras.items():
@@ -87,14 +105,14 @@ def run(tmp, truth, refine, wrist2_images):
         sep = None if c.alone is None else _err(c.alone.X_hand, X_true, c.alone.covariance)
         joint = None if c.X is None else _err(c.X, X_true, c.covariance)
         rows[f"{c.key} {name}"] = (sep, joint)
-    a, b = rig.cameras["wrist"], rig.cameras["wrist2"]
-    rel_true = relative_truth(truth, "wrist", "wrist2")
+    a, b = rig.cameras[pair[0]], rig.cameras[pair[1]]
+    rel_true = relative_truth(truth, *pair)
     sep = None
     if a.alone is not None and b.alone is not None:
         sep = _err(*_relative_separate(a.alone, b.alone)[:1], rel_true,
                    _relative_separate(a.alone, b.alone)[1])
-    X, C = rig.relative.get(("wrist", "wrist2"), (None, None))
-    rows["X_wrist_wrist2"] = (sep, None if X is None else _err(X, rel_true, C))
+    X, C = rig.relative.get(pair, (None, None))
+    rows[f"X_{pair[0]}_{pair[1]}"] = (sep, None if X is None else _err(X, rel_true, C))
     return rig, rows, t_fit
 
 
@@ -113,20 +131,28 @@ def main():
     p.add_argument("--refine-intrinsics", default="auto")
     p.add_argument("--wrist2-images", type=int, nargs="+", default=[12, 5],
                    help="runs with wrist2 seeing the board in its first N images only")
+    p.add_argument("--rig", choices=("table", "flange"), default="table",
+                   help="table: wrist + wrist2 + cell camera, the board on the table; flange: "
+                        "two cell cameras watching a board on the flange")
     a = p.parse_args()
+    if a.rig == "flange":
+        a.wrist2_images = [a.images]
     robot_error = (a.robot_error[0], a.robot_error[1] / 1000.0)
-    print(f"rig: wrist + wrist2 (distorted) on the hand, cell camera fixed; board in the cell; "
-          f"{a.images} images per camera; robot pose error {a.robot_error[0]}° / "
+    what = ("wrist + wrist2 (distorted) on the hand, cell camera fixed; board in the cell"
+            if a.rig == "table" else "cell_a and cell_b fixed in the cell; board on the flange")
+    print(f"rig: {what}; {a.images} images per camera; robot pose error {a.robot_error[0]}° / "
           f"{a.robot_error[1]} mm per axis (repeats with the joint angles); "
           f"--refine-intrinsics {a.refine_intrinsics}")
     variants = [min(n, a.images) for n in a.wrist2_images]
     sums = {n: {} for n in variants}
     for seed in a.seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            truth, t_render = render(tmp, seed, a.images, robot_error)
+            truth, t_render = render(tmp, seed, a.images, robot_error, a.rig)
             for n2 in variants:
-                rig, rows, t_fit = run(tmp, truth, a.refine_intrinsics, n2)
-                print(f"\nseed {seed}, wrist2 sees the board in {n2} of {a.images} images: rig "
+                rig, rows, t_fit = run(tmp, truth, a.refine_intrinsics, n2, a.rig)
+                seen = f"wrist2 sees the board in {n2} of {a.images} images" \
+                    if a.rig == "table" else f"{a.images} images"
+                print(f"\nseed {seed}, {seen}: rig "
                       f"verdict {rig.verdict.status}; render {t_render:.1f} s, separate + joint "
                       f"calibration {t_fit:.1f} s")
                 print(f"| {'answer':<16} | {'separate (single-camera)':<58} | "
@@ -139,7 +165,9 @@ def main():
                     if joint is not None:
                         acc[1].append(joint)
     for n2 in variants:
-        print(f"\nwrist2 sees the board in {n2} of {a.images} images — mean over seeds "
+        seen = f"wrist2 sees the board in {n2} of {a.images} images" if a.rig == "table" \
+            else "board on the flange"
+        print(f"\n{seen} — mean over seeds "
               f"{' '.join(map(str, a.seeds))} (error to the truth; ratio separate / joint):")
         print("| answer | separate | joint | ratio (rotation, translation) |")
         print("|---|---|---|---|")

@@ -26,6 +26,7 @@ X_{C_a C_b} for two cameras on one mount. Covariances [δθ (rad); δt (m)], R =
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,13 +35,17 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..estimation.reprojection import CornerData, intrinsics_matrix, intrinsics_vector
-from ..estimation.rig_bundle import MOUNTS, RigBlock, fit_rig, pose_error_frame, tangent
+from ..estimation.rig_bundle import (MOUNTS, RigBlock, fit_rig, jackknife_factors,
+                                     pose_error_frame, tangent)
 from ..estimation.se3 import inverse
 from .checks import Reason, Verdict
 from .pipeline import robot_error_covariance
 
 #: A moving camera's board pose this far (χ², 6 dof, tail probability) from the others' FAILs.
 AGREEMENT_P = 1e-4
+#: A move is one step that the split into before and after explains: the spread of all the
+#: images at least this many times that within either part (noise spreads both alike).
+MOVE_CONTRAST = 3.0
 #: A fixed view (camera on the board's mount) whose board pose changes by more than this
 #: between images (deg, m) is not fixed: PnP of one view of a board at 1 m repeats to ~0.1 mm.
 FIXED_VIEW_TOLERANCE = (0.2, 0.002)
@@ -84,6 +89,8 @@ class CameraResult:
     detected: int = 0
     pixel_rms_px: float = math.nan
     agreement: dict = field(default_factory=dict)
+    #: Factor (≥ 1) on the joint fit's covariance from the jackknife over instants.
+    variance_factor: float = 1.0
     streams: object = field(default=None, repr=False)
 
     @property
@@ -149,11 +156,14 @@ class RigResult:
                           "sigma": {"rotation_deg": sr.tolist(), "translation_m": st.tolist()},
                           "intrinsics": {"K": K.tolist(), "distortion": dist.tolist(),
                                          "model": c.intrinsics_model},
-                          "pixel_rms_px": c.pixel_rms_px})
+                          "pixel_rms_px": c.pixel_rms_px,
+                          "jackknife_variance_factor": c.variance_factor})
             if c.alone is not None:
+                off = c.alone.time_offset
                 d["alone"] = {"verdict": c.alone.verdict.to_dict(),
                               c.key: c.alone.X_hand.tolist(),
-                              "covariance": c.alone.covariance.tolist()}
+                              "covariance": c.alone.covariance.tolist(),
+                              "time_offset_s": None if off is None else float(off.offset)}
             return d
         return {"rig": {"verdict": self.verdict.to_dict(), "board_mount": self.board_mount,
                         ("X_BT" if self.board_mount == "cell" else "X_ET"):
@@ -217,7 +227,7 @@ def _fixed_view_check(name, X_CT, lines, covariances=None) -> Reason | None:
         return None
     best = min(((max(spread(every[:k]), spread(every[k:])), k) for k in range(2, n - 1)),
                default=(math.inf, 0))
-    if best[0] <= 1.0:
+    if best[0] <= 1.0 and spread(every) >= MOVE_CONTRAST * best[0]:
         k = best[1]
         d = tangent(X_CT[k], X_CT[k - 1])
         return Reason("FAIL", "camera_moved",
@@ -286,10 +296,10 @@ def _blocks(cams, board_mount):
             data = CornerData.from_lists(np.repeat(np.eye(4)[None], len(s.detections), axis=0),
                                          [d.object_points for d in s.detections],
                                          [d.image_points for d in s.detections])
-            instants = np.arange(len(s.detections))
+            instants = np.asarray(s.camera.lines, int) - 1
         else:
             data, _ = corner_data(c.alone, s.detections)
-            instants = np.asarray(c.alone.aligned.camera_index, int)
+            instants = np.asarray(c.alone.aligned.camera_lines, int) - 1
         blocks.append(RigBlock(i, 0, data, instants, pose_error_frame(c.mount, board_mount),
                                c.mount == board_mount))
     return blocks
@@ -301,6 +311,8 @@ def _joint(cams, board_mount, X_board0, factors):
                math.sqrt(2), 0.05) for c in cams]
     fit = fit_rig(blocks, [c.X for c in cams], [X_board0], [c.intrinsics for c in cams],
                   [c.intrinsics_model for c in cams], px0, None, variance_factors=factors)
+    fit.rig_blocks = [dataclasses.replace(b, variance_factor=f)
+                      for b, f in zip(blocks, [max(float(v), 1.0) for v in factors])]
     return fit
 
 
@@ -449,8 +461,20 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         else:
             rig.fit = fit
             rig.X_board, rig.board_covariance = fit.X_boards[0], fit.board_covariance(0)
+            pairs = [(i, j) for i in range(len(cams)) for j in range(i + 1, len(cams))
+                     if cams[j].mount == cams[i].mount]
+            # What the corners' noise model misses shows in how the answers move when each
+            # instant is left out: their σ are widened by it (never narrowed).
+            jack = jackknife_factors(fit.rig_blocks, fit, pairs)
+            if jack:
+                rig.notes.append("σ widened by a delete-one-instant jackknife: " + ", ".join(
+                    f"{cams[k[1]].name if k[0] == 'camera' else cams[k[1]].name + '→' + cams[k[2]].name}"
+                    f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0) or
+                    "σ checked by a delete-one-instant jackknife: not widened")
             for i, c in enumerate(cams):
-                c.X, c.covariance = fit.X_cameras[i], fit.camera_covariance(i)
+                c.X = fit.X_cameras[i]
+                c.variance_factor = jack.get(("camera", i), 1.0)
+                c.covariance = fit.camera_covariance(i) * c.variance_factor
                 if options.robot_accuracy is not None:
                     # As the single-camera answer: the robot's pose error, constant over the
                     # recording, moves every camera's answer — a moving camera's about the
@@ -460,10 +484,10 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                         c.X, options.robot_accuracy)
                 c.intrinsics = fit.intrinsics[i]
                 c.pixel_rms_px = fit.blocks[i].rms_px
-            for i, a in enumerate(cams):
-                for j in range(i + 1, len(cams)):
-                    if cams[j].mount == a.mount:
-                        rig.relative[(a.name, cams[j].name)] = fit.relative(i, j)
+            for i, j in pairs:
+                X, C = fit.relative(i, j)
+                rig.relative[(cams[i].name, cams[j].name)] = (X, C * jack.get(("pair", i, j),
+                                                                               1.0))
     for c in results.values():
         if c.verdict.status == "FAIL" and c not in cams:
             c.X, c.covariance = None, None

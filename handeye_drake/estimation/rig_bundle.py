@@ -278,7 +278,8 @@ def _solve(blocks, st, S, cols, G, sigma, ps, weights, max_iter=30, tol=1e-10):
 
 def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma0=None,
             pose_sigma0=None, estimate_noise: bool = True, robust: bool = True,
-            max_rounds: int = 3, max_em: int = 10, variance_factors=None) -> RigFit:
+            max_rounds: int = 3, max_em: int = 10, variance_factors=None,
+            covariance: bool = True) -> RigFit:
     """The joint corner-level fit (module docstring).
 
     Args:
@@ -290,6 +291,8 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
         variance_factors: per block a factor ≥ 1 on its corners' variance (e.g. the camera's
             own cross-validation factor: its left-out images predicted worse than its noise
             model says).
+        covariance: False skips the covariance (``covariance_full`` None: a refit whose
+            answer alone is wanted, e.g. the jackknife's).
 
     Raises:
         ValueError: bad arguments, or data that do not determine every unknown (a camera whose
@@ -388,8 +391,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
                for i, b in enumerate(blocks)]
     w = _info(blocks, weights, sigma)
     inv_prior = [1.0 / p ** 2 for p in ps]
-    root = _systems(blocks, st, S, w, inv_prior, cols, G)[0]
-    cov = _covariance(root)
+    cov = _covariance(_systems(blocks, st, S, w, inv_prior, cols, G)[0]) if covariance else None
     results = []
     for i, blk in enumerate(blocks):
         d = blk.data
@@ -406,5 +408,58 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
     return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total)
 
 
-__all__ = ["BlockResult", "MOUNTS", "RigBlock", "RigFit", "fit_rig", "pose_error_frame",
-           "robot_side", "tangent"]
+
+
+def jackknife_factors(blocks, fit: RigFit, pairs=()) -> dict:
+    """A-posteriori variance factors (≥ 1) from a delete-one-instant jackknife: each instant's
+    images (every camera's) left out in turn, the rig refitted from ``fit`` with its noise
+    levels held; the spread of the answers (jackknife covariance C_J) against the fit's own
+    covariance C gives trace(C⁻¹ C_J) / 6 per camera and per pair (a, b) of ``pairs`` (their
+    X_a⁻¹ X_b) — what the corners' noise model misses (a detector's bias shared by an image's
+    corners, …) widens the σ, never narrows them. Returns {("camera", c) | ("pair", a, b):
+    factor}, {} when fewer than 5 instants can be left out."""
+    instants = np.unique(np.concatenate([b.instants for b in blocks]))
+    answers = []
+    for g in instants:
+        sub = []
+        for b in blocks:
+            keep = np.flatnonzero(b.instants != g)
+            if len(keep) < 3:
+                break
+            sub.append(dataclasses.replace(b, data=b.data.subset(keep), instants=b.instants[keep]))
+        else:
+            try:
+                f = fit_rig(sub, fit.X_cameras, fit.X_boards, fit.intrinsics, fit.models,
+                            [r.pixel_sigma for r in fit.blocks],
+                            [r.pose_sigma for r in fit.blocks], estimate_noise=False,
+                            robust=False, variance_factors=[b.variance_factor for b in blocks],
+                            covariance=False)
+            except ValueError:
+                continue
+            answers.append(f)
+    G = len(answers)
+    if G < 5:
+        return {}
+    out = {}
+
+    def factor(values, C):
+        d = np.array(values)
+        d = d - d.mean(axis=0)
+        C_J = (G - 1) / G * d.T @ d
+        try:
+            return max(1.0, float(np.trace(np.linalg.solve(C, C_J))) / 6.0)
+        except np.linalg.LinAlgError:
+            return 1.0
+
+    for c in range(len(fit.X_cameras)):
+        out[("camera", c)] = factor([tangent(f.X_cameras[c], fit.X_cameras[c]) for f in answers],
+                                    fit.camera_covariance(c))
+    for a, b in pairs:
+        X, C = fit.relative(a, b)
+        out[("pair", a, b)] = factor([tangent(inverse(f.X_cameras[a]) @ f.X_cameras[b], X)
+                                      for f in answers], C)
+    return out
+
+
+__all__ = ["BlockResult", "MOUNTS", "RigBlock", "RigFit", "fit_rig", "jackknife_factors",
+           "pose_error_frame", "robot_side", "tangent"]
