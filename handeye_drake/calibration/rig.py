@@ -72,7 +72,7 @@ class RigCamera:
                              f"{self.mount!r}")
 
 
-@dataclass
+@dataclass(eq=False)
 class CameraResult:
     """Per camera: ``X`` (X_EC or X_BC, 4×4) and ``covariance`` (6×6) of the joint fit (None when
     it is not in the answer), ``alone`` (the single-camera ``CalibrationResult`` or None),
@@ -129,7 +129,7 @@ class RigResult:
             out.append(f"camera {name} ({c.mount}, {c.key}): {c.verdict.line()}; board found in "
                        f"{c.detected} of {c.images} images")
             out += [f"  {r.level}: {r.message}" for r in c.verdict.reasons]
-            if c.X is not None:
+            if c.X is not None and c.covariance is not None:
                 sr, st = c.sigma()
                 p = c.X[:3, 3]
                 out.append(f"  {c.key} translation [{p[0]:+.5f} {p[1]:+.5f} {p[2]:+.5f}] m "
@@ -149,7 +149,7 @@ class RigResult:
         def cam(c: CameraResult):
             d = {"mount": c.mount, "mode": c.mode, "verdict": c.verdict.to_dict(),
                  "images": c.images, "detected": c.detected, "agreement": c.agreement}
-            if c.X is not None:
+            if c.X is not None and c.covariance is not None:
                 K, dist = intrinsics_matrix(c.intrinsics)
                 sr, st = c.sigma()
                 d.update({c.key: c.X.tolist(), "covariance": c.covariance.tolist(),
@@ -179,8 +179,8 @@ class RigResult:
         child frame ``NAME_optical_frame``). ValueError when its verdict is FAIL."""
         from ..recorded.exports import export_texts
         c = self.cameras[name]
-        if c.X is None or c.verdict.status == "FAIL":
-            raise ValueError(f"export: camera {name}'s verdict is FAIL")
+        if c.X is None or c.covariance is None or c.verdict.status == "FAIL":
+            raise ValueError(f"export: camera {name} has no answer (verdict {c.verdict.status})")
         K, dist = intrinsics_matrix(c.intrinsics)
         from ..vision.camera_model import CameraIntrinsics
         I = c.streams.intrinsics if c.streams is not None else None
@@ -449,6 +449,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                 moving = [c for c in moving if c is not worst]
     cams = moving + fixed
     if not moving:
+        for c in fixed:
+            c.verdict = _fail("not_determined",
+                              f"camera {c.name} sees one fixed view of the board: with no camera "
+                              "that moves relative to the board left to place it, its pose is "
+                              "not determined")
         cams = []
     if cams:
         try:
@@ -489,7 +494,7 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                 rig.relative[(cams[i].name, cams[j].name)] = (X, C * jack.get(("pair", i, j),
                                                                                1.0))
     for c in results.values():
-        if c.verdict.status == "FAIL" and c not in cams:
+        if c not in cams:
             c.X, c.covariance = None, None
     reasons = [Reason(r.level, r.code, r.message) for c in results.values()
                for r in c.verdict.reasons if r.level == "FAIL"]
