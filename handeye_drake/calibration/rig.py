@@ -1,23 +1,28 @@
 """Multi-camera rigs: N cameras on one robot — on the hand (X_EC) or fixed in the cell (X_BC), in
-any mix — calibrated jointly from their images of one board, each camera's images paired with
-the robot poses by index (image k of every camera was taken at robot pose k).
+any mix — calibrated jointly from their images of one board: each camera's images paired with
+the robot poses by index (image k of every camera taken at robot pose k), or from a bag, one
+image topic per camera paired with the robot's tf in time.
 
 Stages (``calibrate_rig``):
 
-1. read: each camera's images detected with its own intrinsics (``inputs.image_streams``); a
-   camera that does not see the board in ≥ 3 images FAILs by name and is left out;
+1. read: each camera's images detected with its own intrinsics (``inputs.image_streams`` or
+   ``bag_image_streams``); a camera that does not see the board in ≥ 3 images FAILs by name and
+   is left out;
 2. alone: a camera that moves relative to the board (hand camera with the board in the cell,
    cell camera with the board on the hand) is calibrated alone by the single-camera pipeline
    (``corners.calibrate_images``: pose-level start, corner-level fit, its verdict); a camera on
    the board's mount (a cell camera watching a board fixed in the cell) sees one view: its images
    must all show the board in the same place (else it moved, or its images are a hand camera's);
-3. jointly: one corner-level maximum-likelihood fit of every camera that passed
-   (``estimation.rig_bundle.fit_rig``), the board's pose one unknown for all, each camera's
-   intrinsics refined with the model its own fit chose, its σ widened by its own cross-validation
-   factor;
+3. moved: with the board placed by another camera, each image of a moving camera gives its own
+   mount pose; one clean step in them names a camera that slipped half-way;
 4. agree: each moving camera's board pose (from its own fit) against the board pose of the
    others' joint fit (χ² on 6 dof with both covariances): a camera whose data contradict the
-   others' (wrong intrinsics, swapped topics, moved) is named; it is left out of the answer.
+   others' (wrong intrinsics, swapped topics, moved) is named; it is left out of the answer;
+5. jointly: one corner-level maximum-likelihood fit of every camera that passed
+   (``estimation.rig_bundle.fit_rig``), the board's pose one unknown for all, each camera's
+   intrinsics refined with the model its own fit chose, its σ widened by its own cross-validation
+   factor, then by a delete-one-instant jackknife (``jackknife_factors``) where the answers move
+   more than their covariance says; the robot's accuracy added as for one camera.
 
 Frames: B base, E flange, T board, C_i camera i. Answers X_EC (hand cameras) or X_BC (cell
 cameras); the board X_BT (board in the cell) or X_ET (board on the hand); camera-to-camera
