@@ -278,6 +278,17 @@ class CalibratorConfig:
 
 
 @dataclass
+class CellCamera:
+    """A camera fixed in the cell (X_WC, OpenCV axes: z along the optical axis) with the hand
+    camera's intrinsics, rendered, watching the same board; its X_BC is calibrated on line from
+    the hand camera's estimate (``systems.cell_camera_calibrator``). Needs the rendered camera
+    model."""
+    name: str = "cell_camera"
+    X_WC: Transform = field(default_factory=lambda: _transform([-0.95, -0.45, 0.55],
+                                                                [-130, 0, -60]))
+
+
+@dataclass
 class Scenario:
     #: Seeds every noise source (0 … 2³² − 1); the same seed gives bit-identical runs.
     seed: int = 0
@@ -294,6 +305,9 @@ class Scenario:
     target: TargetConfig = field(default_factory=TargetConfig)
     servo: ServoConfig = field(default_factory=ServoConfig)
     calibrator: CalibratorConfig = field(default_factory=CalibratorConfig)
+    #: Cameras fixed in the cell, rendered, calibrated on line through the board's pose that the
+    #: hand camera's calibration gives (``CellCamera``; rendered camera model only).
+    cell_cameras: list[CellCamera] = field(default_factory=list)
     #: The user's rough guess of X_EC: used for the self-calibration pivots and before the
     #: two-motion solution exists.
     X_EC_guess: Transform = field(default_factory=lambda: _transform([0.0, 0.0, 0.05],
@@ -316,6 +330,12 @@ class Scenario:
         v = self.arm.driver.velocity_scale
         if not (isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 < v <= 1.0):
             raise ValueError(f"arm.driver.velocity_scale: must be in (0, 1], got {v!r}")
+        if self.cell_cameras and not isinstance(self.camera.model, RenderedImages):
+            raise ValueError("cell_cameras: cameras in the cell render the board; set "
+                             "camera.model to !RenderedImages")
+        names = [c.name for c in self.cell_cameras]
+        if len(set(names)) != len(names) or any(not n for n in names):
+            raise ValueError(f"cell_cameras: names must be distinct and non-empty, got {names}")
         s = self.camera.sensor
         check_positive(s.fps, "camera.sensor.fps")
         if s.fps > MAX_FPS:

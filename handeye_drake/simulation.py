@@ -171,6 +171,8 @@ class ClosedLoop:
     calibrator: HandEyeCalibrator
     X_EC_true: np.ndarray
     loggers: dict = field(default_factory=dict)
+    #: ``CellCameraParts`` of ``scenario.cell_cameras``.
+    cell_cameras: list = field(default_factory=list)
 
 
 @dataclass
@@ -278,6 +280,9 @@ class RenderedCameraParts:
     pose: HandCameraPose
     recorder: FrameRecorder | None
     detect_options: dict
+    #: The perception-only scene the camera renders from (``add_perception_scene_graph``);
+    #: cameras in the cell render from it too.
+    scene: object = None
 
     def get_features_output_port(self):
         return self.detector.get_features_output_port()
@@ -338,7 +343,61 @@ def add_rendered_camera_and_detector(scenario: Scenario, builder: DiagramBuilder
         builder.Connect(rendered.color_image_output_port(),
                         recorder.get_color_image_input_port())
     return RenderedCameraParts(rendered=rendered, detector=detector, pose=pose,
-                               recorder=recorder, detect_options=dict(LOOP_DETECT_OPTIONS))
+                               recorder=recorder, detect_options=dict(LOOP_DETECT_OPTIONS),
+                               scene=scene)
+
+
+@dataclass
+class CellCameraParts:
+    """A camera fixed in the cell in the loop: its rendered sensor, detector and on-line
+    calibrator (``CellCameraCalibrator``), and its true X_BC."""
+    name: str
+    rendered: object
+    detector: TargetDetector
+    calibrator: object
+    X_BC_true: np.ndarray
+
+
+def add_cell_cameras(scenario: Scenario, builder: DiagramBuilder, arm: _Arm,
+                     camera: RenderedCameraParts, calibrator, sampled_X_BE) -> list:
+    """Each of ``scenario.cell_cameras``: an ``RgbdSensor`` fixed in the world at its X_WC
+    (rendering from the hand camera's perception scene, with the hand camera's intrinsics), a
+    ``TargetDetector`` on its images and a ``CellCameraCalibrator`` fed by the hand camera's
+    measurement, the robot pose sampled at the trigger and the hand calibrator's X_EC estimate
+    and covariance — one calibrator system per camera (the cell camera's X_BC is determined only
+    through the board's pose, which the hand camera's calibration gives)."""
+    from .systems.cell_camera_calibrator import CellCameraCalibrator
+    from .systems.rendered_camera import add_rendered_camera
+    model, sensor = scenario.camera.model, scenario.camera.sensor
+    intrinsics = intrinsics_of(scenario)
+    X_WB = transform_matrix(scenario.arm.X_WB, "arm.X_WB")
+    parts = []
+    bg = sensor.background
+    for cell in scenario.cell_cameras:
+        X_WC = transform_matrix(cell.X_WC, f"cell_cameras[{cell.name}].X_WC")
+        sg = camera.scene.scene_graph
+        rendered = add_rendered_camera(
+            builder, sg, sg.world_frame_id(), X_WC, intrinsics, supersample=model.supersample,
+            name=cell.name, clipping_near=sensor.clipping_near,
+            clipping_far=max(sensor.clipping_far, 3.0), background=(bg.r(), bg.g(), bg.b()),
+            fps=sensor.fps)
+        detector = builder.AddNamedSystem(f"{cell.name}_detector", TargetDetector(
+            model.parsed_target(), intrinsics, scenario.period,
+            feature_ids=model.feature_ids_or_default(), **LOOP_DETECT_OPTIONS))
+        builder.Connect(rendered.color_image_output_port(), detector.get_color_image_input_port())
+        X_BC_true = inverse(X_WB) @ X_WC
+        cal = builder.AddNamedSystem(f"{cell.name}_calibrator", CellCameraCalibrator(
+            scenario.period, offset=scenario.period / DRIVER_STEPS_PER_PERIOD))
+        for name, port in (("X_BE", sampled_X_BE), ("X_CT_hand", camera.get_X_CT_output_port()),
+                           ("hand_valid", camera.detector.get_found_output_port()),
+                           ("X_EC", calibrator.get_X_EC_output_port()),
+                           ("X_EC_covariance", calibrator.get_X_EC_covariance_output_port()),
+                           ("X_CT_cell", detector.get_X_CT_measured_output_port()),
+                           ("cell_valid", detector.get_found_output_port()),
+                           ("X_CT_cell_covariance", detector.get_covariance_output_port())):
+            builder.Connect(port, cal.get_input_port_by_name(name))
+        parts.append(CellCameraParts(cell.name, rendered, detector, cal, X_BC_true))
+    return parts
 
 
 def connect_detector_to_calibrator(scenario: Scenario, builder: DiagramBuilder,
@@ -545,6 +604,11 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
     calibrator, sampled_X_BE = add_calibrator(scenario, builder, arm, camera, servo)
     if isinstance(camera, RenderedCameraParts):
         connect_detector_to_calibrator(scenario, builder, camera, calibrator)
+    cells = add_cell_cameras(scenario, builder, arm, camera, calibrator, sampled_X_BE) \
+        if scenario.cell_cameras else []
+    for cell in cells:
+        builder.ExportOutput(cell.calibrator.get_output_port_by_name("X_BC_estimate"),
+                             f"{cell.name}_X_BC_estimate")
     if feedback:
         builder.Connect(calibrator.get_X_CE_output_port(), servo.get_X_CE_input_port())
     else:
@@ -580,6 +644,10 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
         }
         if isinstance(camera, RenderedCameraParts):
             ports.update(detector_ports(camera))
+        for cell in cells:
+            for name in ("X_BC_estimate", "X_BC_std", "frames"):
+                ports[f"{cell.name}:{name}"] = cell.calibrator.get_output_port_by_name(name)
+            ports[f"{cell.name}:found"] = cell.detector.get_found_output_port()
         loggers = add_logger(builder, ports, scenario.period)
 
     if meshcat is not None:
@@ -597,7 +665,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
                       scene_graph=arm.handles.scene_graph,
                       model_instance=arm.handles.model_instance, driver=arm.driver,
                       ee_sensor=arm.ee_sensor, camera=camera, servo=servo, calibrator=calibrator,
-                      X_EC_true=X_EC_true, loggers=loggers)
+                      X_EC_true=X_EC_true, loggers=loggers, cell_cameras=cells)
 
 
 def _check_start_visibility(scenario: Scenario, arm: _Arm, X_EC) -> None:
@@ -669,6 +737,10 @@ class ScenarioResult:
     #: (6, 6) the calibrator's covariance of the final X_EC's error [δθ (rad); δt (m)]
     #: (R = exp([δθ]×) R̂, about / along E's axes), at the end of the run.
     X_EC_covariance: np.ndarray | None = None
+    #: Per camera in the cell (``scenario.cell_cameras``): {"X_BC_true", "X_BC_estimates"
+    #: (K, 4, 4), "X_BC_std" (K, 6: deg, m), "X_BC_covariance" (6, 6, at the end), "frames",
+    #: "found" (K,), "rotation_error_deg" (K,), "translation_error_m" (K,)}.
+    cell_cameras: dict = field(default_factory=dict)
 
     @property
     def real_time_factor(self) -> float:
@@ -707,6 +779,15 @@ class ScenarioResult:
             "diagnostics": list(self.diagnostics),
             "interrupted": self.interrupted,
             **self._detector_summary(),
+            **({"cell_cameras": {n: {
+                "final_X_BC": np.asarray(c["X_BC_estimates"][-1], float).tolist(),
+                "true_X_BC": np.asarray(c["X_BC_true"], float).tolist(),
+                "final_rotation_error_deg": float(c["rotation_error_deg"][-1]),
+                "final_translation_error_m": float(c["translation_error_m"][-1]),
+                "final_X_BC_rotation_std_deg": [float(v) for v in c["X_BC_std"][-1, :3]],
+                "final_X_BC_translation_std": [float(v) for v in c["X_BC_std"][-1, 3:]],
+                "frames_used": int(c["frames"][-1])} for n, c in self.cell_cameras.items()}}
+               if self.cell_cameras else {}),
         }
 
     def _detector_summary(self) -> dict:
@@ -806,7 +887,24 @@ def _collect_result(scenario: Scenario, loop: ClosedLoop, context, wall: float) 
         servo_start_time=servo_start, sim_time=float(context.get_time()), wall_time=wall,
         calibrator_mode=mode, diagnostics=diagnostics + _detector_diagnostics(loop, logs, times),
         V_WE_E_command=data["V_WE_E_command"], X_EC_covariance=covariance,
+        cell_cameras=_cell_results(loop, data, context),
         **_detector_results(scenario, loop, logs, context))
+
+
+def _cell_results(loop: ClosedLoop, data: dict, context) -> dict:
+    out = {}
+    for cell in loop.cell_cameras:
+        X = np.array([vector_to_pose(v) for v in data[f"{cell.name}:X_BC_estimate"]])
+        cal_context = cell.calibrator.GetMyContextFromRoot(context)
+        cov = np.asarray(cell.calibrator.get_output_port_by_name("X_BC_covariance").Eval(
+            cal_context), float).reshape(6, 6)
+        out[cell.name] = {
+            "X_BC_true": cell.X_BC_true, "X_BC_estimates": X,
+            "X_BC_std": data[f"{cell.name}:X_BC_std"], "X_BC_covariance": cov,
+            "frames": data[f"{cell.name}:frames"][:, 0], "found": data[f"{cell.name}:found"][:, 0],
+            "rotation_error_deg": np.array([rotation_error_deg(cell.X_BC_true, x) for x in X]),
+            "translation_error_m": np.linalg.norm(X[:, :3, 3] - cell.X_BC_true[:3, 3], axis=1)}
+    return out
 
 
 @dataclass

@@ -156,6 +156,12 @@ def run_simulate(args) -> int:
         if missed:
             print(f"  frames_to_save: no frame at {', '.join(f'{t:g}' for t in missed)} s "
                   f"(the run ended at {result.sim_time:g} s)")
+    for name, c in summary.get("cell_cameras", {}).items():
+        print(f"  cell camera {name}: X_BC {c['final_rotation_error_deg']:.3f} deg / "
+              f"{1000 * c['final_translation_error_m']:.2f} mm from the truth (1σ "
+              f"{max(c['final_X_BC_rotation_std_deg']):.3f} deg / "
+              f"{1000 * max(c['final_X_BC_translation_std']):.2f} mm per axis at most; "
+              f"{c['frames_used']} frames with both cameras)")
     print(f"  simulated {summary['simulated_time_s']:.2f} s in {summary['wall_time_s']:.2f} s wall "
           f"(real-time factor {summary['real_time_factor']:.2f})"
           + (" — INTERRUPTED, results so far saved" if result.interrupted else ""))

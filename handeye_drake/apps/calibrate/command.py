@@ -66,6 +66,18 @@ def _formats_arg(text: str):
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+class _CameraArg(argparse.Action):
+    """``--camera FILE`` (the last one given), or repeated ``--camera NAME:DIR…`` of a rig
+    (``rig_command``), collected in ``rig_cameras``."""
+
+    def __call__(self, parser, namespace, value, option_string=None):
+        from .rig_command import is_rig_camera
+        if is_rig_camera(value):
+            namespace.rig_cameras = list(getattr(namespace, "rig_cameras", None) or []) + [value]
+        else:
+            setattr(namespace, self.dest, value)
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "calibrate", help="hand-eye calibration from recorded robot and camera data",
@@ -76,7 +88,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "can be trusted and why not.")
     src = p.add_argument_group("inputs (one of: --robot with --camera, --bag, --images)")
     src.add_argument("--robot", metavar="FILE", help="robot poses X_BE (end-effector in base)")
-    src.add_argument("--camera", metavar="FILE", help="camera poses X_CT (target in camera)")
+    src.add_argument("--camera", metavar="FILE | NAME:DIR[:MOUNT[:INTRINSICS]]",
+                     action=_CameraArg,
+                     help="camera poses X_CT (target in camera); or, repeated, the cameras of a "
+                          "rig calibrated jointly: NAME:DIR of its images (image k with robot "
+                          "pose k), MOUNT hand (X_EC, default) or cell (X_BC), its intrinsics")
+    src.add_argument("--rig", metavar="YAML",
+                     help="a multi-camera rig described in a YAML file (robot, target, board, "
+                          "cameras: see docs/multi-camera.md)")
+    src.add_argument("--board-mount", choices=("cell", "hand"), default=None,
+                     help="rig: where the board is — cell (X_BT, default) or hand (X_ET)")
     src.add_argument("--bag", metavar="PATH",
                      help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap (read without ROS)")
     src.add_argument("--images", nargs="+", metavar="PATH",
@@ -257,6 +278,13 @@ def options_from_args(args) -> CalibrationOptions:
 
 def run_calibrate_command(args) -> int:
     """Runs ``calibrate`` from parsed arguments; raises ValueError on bad input."""
+    rig_cameras = getattr(args, "rig_cameras", None) or []
+    if rig_cameras or getattr(args, "rig", None):
+        if args.camera:
+            raise ValueError(f"--camera {args.camera}: a rig's cameras are NAME:DIR; a camera "
+                             "pose file calibrates one camera")
+        from .rig_command import run_rig_command
+        return run_rig_command(args, rig_cameras, options_from_args(args))
     sources = [bool(args.bag), bool(args.images), bool(args.camera)]
     if sum(sources) != 1:
         raise ValueError("inputs: give one of --robot FILE --camera FILE, --bag PATH, or "

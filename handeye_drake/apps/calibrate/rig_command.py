@@ -1,0 +1,158 @@
+"""``handeye-drake calibrate`` of a multi-camera rig (``calibration.rig``):
+
+    handeye-drake calibrate --robot FILE --target SPEC \\
+        --camera wrist:DIR[:hand|cell[:INTRINSICS]] --camera cell:DIR:cell:cell.yaml ...
+    handeye-drake calibrate --rig rig.yaml
+    handeye-drake calibrate --bag PATH --robot-frames base_link:tool0 --target SPEC \\
+        --camera wrist:/wrist/image_raw:hand --camera cell:/cell/image_raw:cell
+
+Image k of every camera pairs with robot pose k; from a bag, each camera's images pair with the
+robot's tf in time (its clock offset estimated, as ``--bag --image-topic``). ``--board-mount``
+says where the board is (cell: X_BT, default; hand: X_ET). A rig YAML holds the same (paths
+relative to the file)::
+
+    robot: robot_poses.tum
+    target: charuco:7x5:0.04:0.03:DICT_5X5_100
+    board: cell
+    cameras:
+      wrist: {images: wrist, mount: hand, intrinsics: wrist/intrinsics.yaml}
+      cell: {images: cell, mount: cell, intrinsics: cell/intrinsics.yaml}
+
+Writes ``calibration.json`` (the rig: verdict, board, camera-to-camera transforms, every
+camera), ``report.txt``, and per camera ``NAME/calibration.json`` and with ``--export`` its frame
+(``NAME/handeye.urdf``, … : one frame per camera, ``NAME_optical_frame``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ...calibration.rig import RigCamera, calibrate_rig
+
+_NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
+
+
+def is_rig_camera(text: str) -> bool:
+    """``--camera`` names a rig camera (NAME:DIR…) rather than a camera pose file: a name before
+    the first colon and no file of that whole name."""
+    name, sep, rest = str(text).partition(":")
+    return bool(sep and name and set(name) <= _NAME_CHARS and rest
+                and not Path(text).is_file())
+
+
+def parse_rig_camera(text: str, bag=None) -> RigCamera:
+    """``NAME:DIR[:MOUNT[:INTRINSICS]]`` → ``RigCamera`` (ValueError naming ``--camera``); with
+    ``bag``, ``NAME:TOPIC[:MOUNT[:INTRINSICS]]`` (the camera's image topic in the bag)."""
+    parts = str(text).split(":")
+    name, folder = parts[0], parts[1] if len(parts) > 1 else ""
+    mount = parts[2] if len(parts) > 2 and parts[2] else "hand"
+    intrinsics = ":".join(parts[3:]) or None
+    if not folder:
+        raise ValueError(f"--camera {text}: expected NAME:{'TOPIC' if bag else 'DIR'}"
+                         "[:hand|cell[:INTRINSICS]]")
+    if bag is None and not Path(folder).exists():
+        raise ValueError(f"--camera {text}: {folder} not found")
+    try:
+        if bag is not None:
+            return RigCamera(name, bag, mount, intrinsics, topic=folder)
+        return RigCamera(name, folder, mount, intrinsics)
+    except ValueError as e:
+        raise ValueError(f"--camera {text}: {e}") from None
+
+
+def read_rig_yaml(path) -> dict:
+    """{"robot", "target", "board", "cameras": [RigCamera]} of a rig YAML (module docstring)."""
+    import yaml
+    p = Path(path)
+    try:
+        doc = yaml.safe_load(p.read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise ValueError(f"--rig {path}: {e}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("cameras"), dict) or not doc["cameras"]:
+        raise ValueError(f"--rig {path}: expected a mapping with 'cameras: {{NAME: {{images: "
+                         "DIR, mount: hand|cell, intrinsics: FILE}}}}'")
+    base = p.parent
+
+    def rel(v):
+        return None if v is None else str(base / str(v)) if not Path(str(v)).is_absolute() \
+            else str(v)
+
+    cams = []
+    for name, c in doc["cameras"].items():
+        if not isinstance(c, dict) or "images" not in c:
+            raise ValueError(f"--rig {path}: camera {name}: expected {{images: DIR, …}}")
+        intr = c.get("intrinsics")
+        if intr is not None and not Path(rel(intr)).exists():
+            intr_arg = str(intr)              # an inline spec (fx,fy,cx,cy,…)
+        else:
+            intr_arg = rel(intr)
+        try:
+            cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg))
+        except ValueError as e:
+            raise ValueError(f"--rig {path}: {e}") from None
+    return {"robot": rel(doc.get("robot")), "target": doc.get("target"),
+            "board": doc.get("board"), "cameras": cams}
+
+
+def run_rig_command(args, rig_cameras, options) -> int:
+    """The rig calibration of parsed arguments (``command.run_calibrate_command`` hands over
+    when ``--camera NAME:DIR`` or ``--rig`` is given)."""
+    from ..outputs import prepare_output_dir
+    robot, target, board = args.robot, args.target, getattr(args, "board_mount", None)
+    cams = [parse_rig_camera(t, args.bag) for t in rig_cameras]
+    if getattr(args, "rig", None):
+        doc = read_rig_yaml(args.rig)
+        cams += doc["cameras"]
+        robot, target = robot or doc["robot"], target or doc["target"]
+        board = board or doc["board"]
+    board = board or "cell"
+    if not robot and not args.bag:
+        raise ValueError("--robot: the robot poses (X_BE) are needed with a rig of image "
+                         "folders")
+    if not target:
+        raise ValueError("--target: the calibration target is needed with a rig (e.g. "
+                         "charuco:7x5:0.04:0.03:DICT_5X5_100)")
+    if board not in ("cell", "hand"):
+        raise ValueError(f"--board-mount: expected cell or hand, got {board!r}")
+    if args.images:
+        raise ValueError("--camera NAME:DIR: a rig takes its images from each camera's "
+                         "directory; leave out --images")
+    names = [c.name for c in cams]
+    if len(set(names)) != len(names):
+        raise ValueError(f"--camera: camera names must differ, got {', '.join(names)}")
+    out = prepare_output_dir(args.out, "calibrate", args.force)
+    result = calibrate_rig(cams, robot, target, board, options,
+                           robot_frames=args.robot_frames)
+    written = []
+    p = out.path("calibration.json")
+    p.write_text(json.dumps(result.to_json(), indent=1) + "\n")
+    written.append(p)
+    lines = result.lines()
+    p = out.path("report.txt")
+    p.write_text("\n".join(lines) + "\n")
+    written.append(p)
+    doc = result.to_json()
+    for name, cam in result.cameras.items():
+        p = out.path(f"{name}/calibration.json")
+        p.write_text(json.dumps({"camera": name, **doc["cameras"][name],
+                                 "rig_verdict": doc["rig"]["verdict"]}, indent=1) + "\n")
+        written.append(p)
+        if args.export and cam.verdict.status != "FAIL" and cam.X is not None:
+            for fname, text in result.export(name, args.export, args.parent_frame).items():
+                q = out.path(f"{name}/{fname}")
+                q.write_text(text)
+                if q.suffix == ".sh":
+                    q.chmod(0o755)
+                written.append(q)
+    out.finish(written)
+    print("\n".join(lines))
+    if args.export and result.verdict.status == "FAIL":
+        print("no export of the cameras that FAIL")
+    print("wrote: " + ", ".join(str(w) for w in written[:12])
+          + (f", … ({len(written) - 12} more)" if len(written) > 12 else ""))
+    status = result.verdict.status
+    return 1 if status == "FAIL" or (status == "WARN" and args.strict) else 0
+
+
+__all__ = ["is_rig_camera", "parse_rig_camera", "read_rig_yaml", "run_rig_command"]
