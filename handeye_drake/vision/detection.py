@@ -53,6 +53,7 @@ from .targets import (
     get_dictionary,
     object_points as target_object_points,
     target_dictionary_name,
+    target_symmetries,
     validate_target,
 )
 
@@ -152,26 +153,130 @@ def _subpix_window(points: np.ndarray, grid_cols: int) -> int:
     return int(np.clip(round(0.3 * spacing), 2, 7))
 
 
-def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
+def _sb_flags():
     import cv2
+    return cv2.CALIB_CB_NORMALIZE_IMAGE
+
+
+def _find_chessboard(grey, size, thorough: bool):
+    """(corners (n, 1, 2) float32 or None, which detector found them). Thorough: OpenCV's
+    sector-based ``findChessboardCornersSB`` (finds the most boards: blur, strong distortion,
+    steep views), then the classic ``findChessboardCorners``, then SB's ``CALIB_CB_EXHAUSTIVE``
+    search. Not thorough (a real-time loop): the classic detector with its fast check only.
+    Whichever found them, the corners are refined by ``cornerSubPix`` (window ~30 % of the
+    corner spacing): on rendered boards that beats SB's own sub-pixel estimate, with or without
+    ``CALIB_CB_ACCURACY``, at every blur measured (``benchmarks/chessboard_detectors.py``)."""
+    import cv2
+    n = size[0] * size[1]
+    attempts = []
+    if thorough:
+        attempts.append(("findChessboardCornersSB",
+                         lambda: cv2.findChessboardCornersSB(grey, size, flags=_sb_flags())))
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    if not thorough:
+        flags |= cv2.CALIB_CB_FAST_CHECK
+    attempts.append(("findChessboardCorners",
+                     lambda: cv2.findChessboardCorners(grey, size, flags=flags)))
+    if thorough:
+        attempts.append(("findChessboardCornersSB (exhaustive)",
+                         lambda: cv2.findChessboardCornersSB(
+                             grey, size, flags=_sb_flags() | cv2.CALIB_CB_EXHAUSTIVE)))
+    for which, attempt in attempts:
+        found, corners = attempt()
+        if found and corners is not None and len(corners) == n:
+            corners = np.asarray(corners, np.float32).reshape(-1, 1, 2)
+            w = _subpix_window(corners.reshape(-1, 2), size[0])
+            corners = cv2.cornerSubPix(grey, corners, (w, w), (-1, -1),
+                                       (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 40,
+                                        1e-3))
+            return corners, which
+    return None, ""
+
+
+def _edge_reason(points: np.ndarray, shape, spacing: float) -> str:
+    """Which image borders points lie within ~one grid spacing of ("" if none)."""
+    h, w = shape
+    m = max(1.5 * spacing, 4.0)
+    sides = [name for name, near in (("left", points[:, 0] < m), ("right", points[:, 0] > w - 1 - m),
+                                     ("top", points[:, 1] < m),
+                                     ("bottom", points[:, 1] > h - 1 - m)) if np.any(near)]
+    return " and ".join(sides)
+
+
+def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> str:
+    """Why no complete board was found, from what is visible (runs only on a miss): the grey
+    range, then the largest board part ``findChessboardCornersSB`` finds (a 3×3 pattern with
+    ``CALIB_CB_LARGER``): where it is, how sharp (``estimateChessboardSharpness``)."""
+    import cv2
+    spec = f"chessboard {target.cols}x{target.rows}"
+    lo, hi = np.percentile(grey, [1, 99])
+    if hi - lo < 25:
+        return (f"{spec} not found: the image has almost no contrast (grey levels 1–99 % "
+                f"between {lo:.0f} and {hi:.0f}: too dark, overexposed or covered?)")
+    if not thorough:
+        return (f"{spec} not found by the fast detector (all {target.cols * target.rows} inner "
+                f"corners must be visible, with a white border around the board)")
+    found, corners, meta = cv2.findChessboardCornersSBWithMeta(
+        grey, (3, 3), flags=_sb_flags() | cv2.CALIB_CB_LARGER)
+    if not found or corners is None or meta is None:
+        return (f"{spec} not found: no chessboard corners seen (board out of view, too small, "
+                f"too blurred, or glare on it?)")
+    part = np.asarray(corners, float).reshape(-1, 2)
+    rows_seen, cols_seen = meta.shape[:2]
+    grid = part.reshape(rows_seen, cols_seen, 2)
+    spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
+    seen = f"a {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} part of it"
+    sides = _edge_reason(part, grey.shape, spacing)
+    if sides:
+        return (f"{spec} not found: only {seen} is seen, at the image's {sides} edge — the board "
+                f"is partly out of view")
+    try:
+        sharpness = float(cv2.estimateChessboardSharpness(
+            grey, (cols_seen, rows_seen), part.reshape(-1, 1, 2).astype(np.float32))[0][0])
+    except cv2.error:
+        sharpness = float("nan")
+    if sharpness > 0.25 * spacing:
+        return (f"{spec} not found: only {seen} is seen and its edges are {sharpness:.1f} px wide "
+                f"for squares of {spacing:.0f} px — too blurred (motion or focus)")
+    if {cols_seen, rows_seen} != {target.cols, target.rows} and \
+            max(cols_seen, rows_seen) > max(target.cols, target.rows):
+        return (f"{spec} not found: a {cols_seen}x{rows_seen} board is seen — COLSxROWS counts "
+                f"INNER corners (squares − 1); is the spec right?")
+    return (f"{spec} not found: only {seen} is seen, inside the image — part of the board "
+            f"hidden (glare, an occluder), or COLSxROWS (inner corners) wrong?")
+
+
+def _canonical_order(points: np.ndarray, target) -> np.ndarray:
+    """Points (n, 2) of a complete grid relabelled, among the board's symmetric labellings
+    (``targets.target_symmetries``), so that point 0 is the one nearest the image's top-left
+    corner: the two OpenCV chessboard detectors (which start from opposite ends) then agree,
+    and the order follows the image, as OpenCV's does. Which way round the board really is in
+    each view is left to the robot's motion (``calibration.symmetry``)."""
+    best, best_key = points, float(points[0].sum())
+    for _, perm in target_symmetries(target):
+        relabelled = np.empty_like(points)
+        relabelled[perm] = points
+        key = float(relabelled[0].sum())
+        if key < best_key - 1e-6:
+            best, best_key = relabelled, key
+    return best
+
+
+def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
     size = (target.cols, target.rows)
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
-    found, corners = cv2.findChessboardCorners(grey, size, flags=flags)
-    if not found and thorough:
-        found, corners = cv2.findChessboardCornersSB(grey, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    corners, which = _find_chessboard(grey, size, thorough)
     n = target.cols * target.rows
-    if not found or corners is None or len(corners) != n:
-        return (np.zeros(0, int), np.zeros((0, 2)),
-                f"chessboard {target.cols}x{target.rows} not found (all {n} inner corners must be "
-                f"visible, with a white border around the board)", "")
-    corners = np.asarray(corners, np.float32).reshape(-1, 1, 2)
-    w = _subpix_window(corners.reshape(-1, 2), target.cols)
-    corners = cv2.cornerSubPix(grey, corners, (w, w), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 40, 1e-3))
+    if corners is None:
+        return (np.zeros(0, int), np.zeros((0, 2)), _chessboard_miss_reason(grey, target, thorough),
+                "")
+    corners = _canonical_order(corners.reshape(-1, 2), target)
     note = ""
     if (target.cols + target.rows) % 2 == 0:
         note = (f"chessboard {target.cols}x{target.rows} looks the same after a half turn: its "
-                f"orientation comes from the image (prefer COLS + ROWS odd)")
+                f"orientation in each view is decided by the robot's motion (prefer COLS + ROWS "
+                f"odd)")
+    if which != "findChessboardCornersSB":
+        note = "; ".join(x for x in (note, f"found by the fallback {which}") if x)
     return np.arange(n), corners.reshape(-1, 2).astype(float), "", note
 
 
