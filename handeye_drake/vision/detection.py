@@ -49,7 +49,9 @@ from .targets import (
     AprilTagTarget,
     CharucoTarget,
     ChessboardTarget,
+    CircleGridTarget,
     charuco_board,
+    circles,
     get_dictionary,
     object_points as target_object_points,
     target_dictionary_name,
@@ -278,6 +280,104 @@ def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
     if which != "findChessboardCornersSB":
         note = "; ".join(x for x in (note, f"found by the fallback {which}") if x)
     return np.arange(n), corners.reshape(-1, 2).astype(float), "", note
+
+
+def _blob_detector(white: bool, max_area: float):
+    """``cv2.SimpleBlobDetector`` for the circles of a grid: dark (or ``white``) blobs of
+    9 px² up to ``max_area`` px² (OpenCV's default stops at 5000 px², a circle of 80 px: too
+    small for a board filling a large image), round to elliptic (steep views: inertia ratio
+    ≥ 0.05), convex, thresholds every 10 grey levels."""
+    import cv2
+    p = cv2.SimpleBlobDetector_Params()
+    p.filterByColor = True
+    p.blobColor = 255 if white else 0
+    p.minThreshold, p.maxThreshold, p.thresholdStep = 10.0, 245.0, 10.0
+    p.minRepeatability = 2
+    p.minDistBetweenBlobs = 2.0
+    p.filterByArea = True
+    p.minArea, p.maxArea = 9.0, float(max(max_area, 100.0))
+    p.filterByCircularity = True
+    p.minCircularity = 0.5
+    p.filterByConvexity = True
+    p.minConvexity = 0.85
+    p.filterByInertia = True
+    p.minInertiaRatio = 0.05
+    return cv2.SimpleBlobDetector_create(p)
+
+
+def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
+    """Circle centres with ``cv2.findCirclesGrid`` (the stated polarity first, then the other
+    one; the default grid finder, then ``CALIB_CB_CLUSTERING``, which copes better with strong
+    perspective and distortion). The points are the blobs' centroids, i.e. the centres of the
+    circles' images, not yet the images of the circles' centres (``_circle_centre_shift``)."""
+    import cv2
+    size = (target.cols, target.rows)
+    n = target.cols * target.rows
+    base = cv2.CALIB_CB_ASYMMETRIC_GRID if target.asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
+    max_area = grey.size / n
+    tries = [(target.white, base), (target.white, base | cv2.CALIB_CB_CLUSTERING)]
+    if thorough:
+        tries += [(not target.white, base), (not target.white, base | cv2.CALIB_CB_CLUSTERING)]
+    for white, flags in tries:
+        try:
+            found, centres = cv2.findCirclesGrid(grey, size, flags=flags,
+                                                 blobDetector=_blob_detector(white, max_area))
+        except cv2.error:
+            found, centres = False, None
+        if found and centres is not None and len(centres) == n:
+            pts = _canonical_order(np.asarray(centres, float).reshape(-1, 2), target)
+            notes = []
+            if white != target.white:
+                notes.append(f"the circles are {'white on black' if white else 'black on white'}"
+                             f"; the spec says otherwise ({'remove' if target.white else 'add'} "
+                             f"':white')")
+            if target_symmetries(target):
+                notes.append(f"this circle grid looks the same after a "
+                             f"{'quarter' if len(target_symmetries(target)) == 3 else 'half'} "
+                             f"turn: its orientation in each view is decided by the robot's "
+                             f"motion")
+            return np.arange(n), pts, "", "; ".join(notes)
+    kind = "asymmetric" if target.asymmetric else "symmetric"
+    lo, hi = np.percentile(grey, [1, 99])
+    if hi - lo < 25:
+        why = (f"the image has almost no contrast (grey levels 1–99 % between {lo:.0f} and "
+               f"{hi:.0f})")
+    else:
+        blobs = _blob_detector(target.white, max_area).detect(grey)
+        why = (f"{len(blobs)} {'white' if target.white else 'black'} blobs seen, "
+               f"{n} circles needed in a {target.cols}x{target.rows} {kind} grid "
+               + ("— board partly out of view, too small or too blurred?" if len(blobs) < n
+                  else "— other blobs in the way, or COLSxROWS wrong?"))
+    return (np.zeros(0, int), np.zeros((0, 2)),
+            f"{kind} circle grid {target.cols}x{target.rows} not found: {why}", "")
+
+
+_CIRCLE_SAMPLES = 64
+
+
+def _circle_centre_shift(X_CT, target: CircleGridTarget, intrinsics) -> np.ndarray:
+    """(n, 2) px: centroid of each circle's image (its rim projected through the lens, as a
+    64-gon, area centroid) minus the image of its centre. Perspective (and distortion) move the
+    first away from the second; the measured blob centres are the first."""
+    import cv2
+    c = circles(target)
+    a = np.linspace(0.0, 2.0 * np.pi, _CIRCLE_SAMPLES, endpoint=False)
+    rim = np.zeros((len(c), _CIRCLE_SAMPLES + 1, 3))
+    rim[:, :-1, 0] = c[:, :1] + c[:, 2:] * np.cos(a)
+    rim[:, :-1, 1] = c[:, 1:2] + c[:, 2:] * np.sin(a)
+    rim[:, -1, :2] = c[:, :2]
+    rvec, _ = cv2.Rodrigues(X_CT[:3, :3])
+    uv, _ = cv2.projectPoints(rim.reshape(-1, 1, 3), rvec, X_CT[:3, 3], intrinsics.K,
+                              intrinsics.distortion_coefficients)
+    uv = uv.reshape(len(c), _CIRCLE_SAMPLES + 1, 2)
+    poly, centre = uv[:, :-1], uv[:, -1]
+    x, y = poly[..., 0] - centre[:, :1], poly[..., 1] - centre[:, 1:]
+    xn, yn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    cross = x * yn - xn * y
+    area = 0.5 * cross.sum(axis=1)
+    cx = ((x + xn) * cross).sum(axis=1) / (6.0 * area)
+    cy = ((y + yn) * cross).sum(axis=1) / (6.0 * area)
+    return np.stack([cx, cy], axis=1)
 
 
 @functools.lru_cache(maxsize=16)
@@ -581,7 +681,8 @@ def _chessboard_reversed(grey, target: ChessboardTarget, X_CT, intrinsics) -> bo
 
 def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int | None = None,
                   min_pixel_sigma: float = 0.05, ambiguity_ratio: float = 3.0,
-                  max_reprojection_rms_px: float = 5.0, thorough: bool = True) -> TargetDetection:
+                  max_reprojection_rms_px: float = 5.0, thorough: bool = True,
+                  correct_circle_centres: bool = True) -> TargetDetection:
     """Detects ``target`` in ``image`` and estimates ``X_CT`` with its covariance.
 
     Args:
@@ -599,6 +700,10 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
         thorough: when the fast chessboard detector fails, try ``findChessboardCornersSB``
             (finds ~20 % more boards in blurred or steep views, but costs ~80 ms on a 640×480
             frame without a board; a real-time loop that often loses the board may pass False).
+        correct_circle_centres: circle grids: move each measured circle centroid to where the
+            circle's centre projects, by the shift the perspective and the lens predict at the
+            estimated pose (``image_points`` are then the corrected points). False keeps the
+            blob centroids (to measure what the correction is worth).
 
     Returns:
         A ``TargetDetection``; ``found=False`` with a ``reason`` when the target is not (or not
@@ -618,6 +723,9 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
     if isinstance(target, ChessboardTarget):
         need = target.cols * target.rows
         ids, pts, reason, note = _detect_chessboard(grey, target, bool(thorough))
+    elif isinstance(target, CircleGridTarget):
+        need = target.cols * target.rows
+        ids, pts, reason, note = _detect_circles(grey, target, bool(thorough))
     else:
         need = 4 if min_points is None else int(min_points)
         if isinstance(target, CharucoTarget):
@@ -643,6 +751,17 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
         # Same corners, labelled from the other end of the board.
         pts = pts[::-1].copy()
         candidates = _solve_pose(obj, pts, intrinsics)
+    if isinstance(target, CircleGridTarget) and candidates and correct_circle_centres:
+        # The measured points are the circles' image centroids: move them to where the circle
+        # centres project, by the shift predicted at the current pose, twice (the second pass
+        # changes the points by well under 1 % of the shift).
+        measured = pts
+        for _ in range(2):
+            front_now = [c for c in candidates if _sees_front(c[0])] or candidates
+            pts = measured - _circle_centre_shift(front_now[0][0], target, intrinsics)
+            candidates = _solve_pose(obj, pts, intrinsics)
+            if not candidates:
+                break
     front = [c for c in candidates if _sees_front(c[0])]
     if not front:
         reason = ("pose estimation failed" if not candidates else
