@@ -305,6 +305,15 @@ def _blob_detector(white: bool, max_area: float):
     return cv2.SimpleBlobDetector_create(p)
 
 
+def _mirrored(points: np.ndarray, cols: int) -> bool:
+    """The grid's labels run the wrong way round for its printed face: seen from the front,
+    T's x (along a row) then y (down the rows) turn clockwise on the image (u right, v down),
+    so the quadrilateral of the four corner points has a positive signed area."""
+    q = points[[0, cols - 1, len(points) - 1, len(points) - cols]]
+    x, y = q[:, 0], q[:, 1]
+    return float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) < 0.0
+
+
 def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
     """Circle centres with ``cv2.findCirclesGrid`` (the stated polarity first, then the other
     one; the default grid finder, then ``CALIB_CB_CLUSTERING``, which copes better with strong
@@ -325,7 +334,12 @@ def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
         except cv2.error:
             found, centres = False, None
         if found and centres is not None and len(centres) == n:
-            pts = _canonical_order(np.asarray(centres, float).reshape(-1, 2), target)
+            pts = np.asarray(centres, float).reshape(-1, 2)
+            if not target.asymmetric and _mirrored(pts, target.cols):
+                # findCirclesGrid may read a symmetric grid's rows right to left (a mirror
+                # image: no pose of the printed face fits); read them left to right.
+                pts = pts.reshape(target.rows, target.cols, 2)[:, ::-1].reshape(-1, 2)
+            pts = _canonical_order(pts, target)
             notes = []
             if white != target.white:
                 notes.append(f"the circles are {'white on black' if white else 'black on white'}"
