@@ -611,7 +611,7 @@ def resolve_symmetric_board(streams: Streams, mode: str) -> Streams:
     Bag images pair with the robot pose nearest in time (the clock offset, estimated later, is
     assumed small against the robot's motion between views)."""
     from ..vision.targets import format_target, object_points, parse_target, target_symmetries
-    from .symmetry import DECIDED, resolve, undecided_reason
+    from .symmetry import resolve, undecided_reason
     info = streams.inputs.get("images") if isinstance(streams.inputs, dict) else None
     if not streams.detections or not info or not info.get("target"):
         return streams
@@ -629,8 +629,7 @@ def resolve_symmetric_board(streams: Streams, mode: str) -> Streams:
         X_BE = streams.robot.poses[k]
     else:
         X_BE = streams.robot.poses
-    labels, margins = resolve(X_BE, cam.poses, turns, mode)
-    decided = margins >= DECIDED
+    labels, decided = resolve(X_BE, cam.poses, turns, mode)
     found_records = [r for r in streams.images if r.found]
     detections = []
     for det, label in zip(streams.detections, labels):

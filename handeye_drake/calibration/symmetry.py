@@ -14,12 +14,13 @@ not, in general, for the others.
 
 ``resolve`` picks for every view the labelling whose motions agree best with the robot's against
 all the other views (each view in turn as the reference, the most consistent assignment kept).
-A view is decided when any other labelling of it costs at least ``DECIDED`` more (χ² units; a
-pair's cost is its angle difference over ``ANGLE_TOL_DEG`` squared plus, for turns of 15° or
+Two views decide their relative labelling when every other one costs at least ``DECIDED``
+more (χ² units; a pair's cost is its angle difference over ``ANGLE_TOL_DEG`` squared plus, for turns of 15° or
 more, its screw-slide difference over ``SLIDE_TOL_M`` squared, capped at ``PAIR_CAP`` so that a
 bad pair cannot dominate). Views left undecided are dropped with the reason; the typical cause
 is motions that turn the board by ~90° about its normal between views (then θ and 180° − θ give
-the same angle and the same slide). Numpy only.
+the same angle and the same slide); the views joined by deciding pairs form groups whose labels
+are fixed relative to each other, and only the largest group is kept. Numpy only.
 """
 
 from __future__ import annotations
@@ -113,13 +114,14 @@ def resolve(X_BE, X_CT, turns, mode: str):
 
     Returns:
         (labels (N,) int: the turn to undo in each view, X_true = X_CT · turns[label]⁻¹;
-        margins (N,): the extra cost of the next-best labelling of each view, ≥ ``DECIDED``
-        when the view is decided).
+        decided (N,) bool: the view's labelling is fixed relative to the others' by the
+        motions — the views joined by pairs whose other labellings cost ≥ ``DECIDED`` more,
+        the largest such group).
     """
     X_BE, X_CT, turns = (np.asarray(v, float) for v in (X_BE, X_CT, turns))
     n, m = len(X_BE), len(turns)
     if n < 2:
-        return np.zeros(n, int), np.zeros(n)
+        return np.zeros(n, int), np.zeros(n, bool)
     cost = pair_costs(X_BE, X_CT, turns, mode)
     table = _compose_table(turns)
     best_labels, best_total = None, np.inf
@@ -138,15 +140,25 @@ def resolve(X_BE, X_CT, turns, mode: str):
         if total < best_total - 1e-9:
             best_labels, best_total = labels.copy(), total
     labels = best_labels
-    # Undo a common turn: the label of most views is "as detected".
-    common = np.bincount(labels, minlength=m).argmax()
+    # A pair decides its relative labelling when every other one costs ≥ DECIDED more; the
+    # views joined by deciding pairs have labels fixed relative to each other. Two groups not
+    # joined could be turned against each other for free: only the largest is kept.
+    rel = table[labels[:, None], labels[None, :]]                           # (N, N)
+    chosen = np.take_along_axis(cost, rel[..., None], axis=2)[..., 0]
+    others = np.where(np.arange(m)[None, None, :] == rel[..., None], np.inf, cost).min(axis=2)
+    deciding = (others - chosen >= DECIDED) if m > 1 else np.ones((n, n), bool)
+    deciding |= deciding.T
+    group = np.arange(n)
+    for i, j in zip(*np.nonzero(np.triu(deciding, 1))):
+        gi, gj = group[i], group[j]
+        if gi != gj:
+            group[group == gj] = gi
+    sizes = np.bincount(group, minlength=n)
+    decided = group == np.argmax(sizes)
+    # Undo a common turn: the label of most decided views is "as detected".
+    common = np.bincount(labels[decided], minlength=m).argmax()
     labels = table[np.full(n, common), labels]
-    margins = np.zeros(n)
-    for j in range(n):
-        others = np.arange(n) != j
-        per = np.array([cost[others, j, table[labels[others], g]].sum() for g in range(m)])
-        margins[j] = np.delete(per, labels[j]).min() - per[labels[j]] if m > 1 else np.inf
-    return labels, margins
+    return labels, decided
 
 
 def undecided_reason(target_text: str) -> str:

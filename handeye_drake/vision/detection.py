@@ -227,7 +227,7 @@ def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> s
     rows_seen, cols_seen = meta.shape[:2]
     grid = part.reshape(rows_seen, cols_seen, 2)
     spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
-    seen = f"a {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} part of it"
+    seen = f"a block of {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} of its inner corners"
     sides = _edge_reason(part, grey.shape, spacing)
     if sides:
         return (f"{spec} not found: only {seen} is seen, at the image's {sides} edge — the board "

@@ -844,6 +844,8 @@ def render_target(target, pixels_per_metre: float,
     for x0, y0, x1, y1 in black_rectangles(target):
         c0, cx = _coverage((x0 - left) * ppm, (x1 - left) * ppm)
         r0, cy = _coverage((y0 - top) * ppm, (y1 - top) * ppm)
+        # (An edge on the last pixel boundary can round one pixel past it: nothing to cover.)
+        cx, cy = cx[:max(width - c0, 0)], cy[:max(height - r0, 0)]
         dark[r0:r0 + cy.size, c0:c0 + cx.size] += cy[:, None] * cx[None, :]
     if isinstance(target, CircleGridTarget):
         sign = -1.0 if target.white else 1.0
