@@ -121,7 +121,7 @@ def render_set(folder, spec: str, n: int = 8, seed: int = 0, half_out: int = 0,
     arm = add_arm(builder, q0=_HOME_Q)
     add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
     camera = mount_rendered_camera(builder, arm.scene_graph, arm.plant, arm.ee_frame, TRUE_X_EC,
-                                   PINHOLE, supersample=2, clipping_near=0.05,
+                                   PINHOLE, supersample=1, clipping_near=0.05,
                                    clipping_far=3.0, background=(0.30, 0.32, 0.36))
     diagram = builder.Build()
     root = diagram.CreateDefaultContext()
