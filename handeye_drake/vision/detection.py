@@ -4,10 +4,18 @@
 ``X_CT`` (the target frame T of ``vision.targets`` in the OpenCV camera frame C) and its
 uncertainty:
 
-1. points: chessboard — ``cv2.findChessboardCorners`` (falling back on
-   ``findChessboardCornersSB``) then ``cornerSubPix``; the corner order is tied to the printed
-   colours (see ``vision.targets``), so the two OpenCV detectors, which disagree on it, give the
-   same ids. ChArUco — ``cv2.aruco.CharucoDetector`` (its corners are refined by
+1. points: chessboard — ``cv2.findChessboardCornersSB``, falling back on the classic
+   ``findChessboardCorners`` and then on SB's exhaustive search (``thorough=False``: the
+   classic one with its fast check only), then ``cornerSubPix``; when no complete board is
+   found the reason says what is seen (no contrast, a part of the board at an image edge, edges
+   too blurred, a larger board than the spec). The corner order is tied to the printed colours
+   (see ``vision.targets``), so the OpenCV detectors, which disagree on it, give the same ids;
+   a board that looks the same after a half turn is labelled from the end nearest the image's
+   top-left corner, and ``calibration.symmetry`` lets the robot's motion decide. Circle grids —
+   ``cv2.findCirclesGrid`` with a blob detector for circles of any size, the stated polarity
+   first, then the other; the blob centroids are moved to the images of the circles' centres
+   by the shift perspective and distortion predict at the estimated pose
+   (``correct_circle_centres``; docs/targets.md). ChArUco — ``cv2.aruco.CharucoDetector`` (its corners are refined by
    ``cornerSubPix``); when markers are found but no board, the other legacy setting is tried and
    ``note`` says which one matched. AprilTag (one tag or a grid) — ``cv2.aruco.ArucoDetector``
    with the ``DICT_APRILTAG_*`` dictionary, then each corner is moved to the intersection of the
