@@ -5,8 +5,8 @@
 uncertainty:
 
 1. points: chessboard — ``cv2.findChessboardCornersSB``, falling back on the classic
-   ``findChessboardCorners`` and then on SB's exhaustive search (``thorough=False``: the
-   classic one with its fast check only), then ``cornerSubPix``; when no complete board is
+   ``findChessboardCorners`` with its fast check (``thorough=False``: the classic one only),
+   then ``cornerSubPix``; when no complete board is
    found the reason says what is seen (no contrast, a part of the board at an image edge, edges
    too blurred, a larger board than the spec). The corner order is tied to the printed colours
    (see ``vision.targets``), so the OpenCV detectors, which disagree on it, give the same ids;
@@ -170,27 +170,24 @@ def _sb_flags():
 
 def _find_chessboard(grey, size, thorough: bool):
     """(corners (n, 1, 2) float32 or None, which detector found them). Thorough: OpenCV's
-    sector-based ``findChessboardCornersSB`` (finds the most boards: blur, strong distortion,
-    steep views), then the classic ``findChessboardCorners``, then SB's ``CALIB_CB_EXHAUSTIVE``
-    search. Not thorough (a real-time loop): the classic detector with its fast check only.
-    Whichever found them, the corners are refined by ``cornerSubPix`` (window ~30 % of the
-    corner spacing): on rendered boards that beats SB's own sub-pixel estimate, with or without
-    ``CALIB_CB_ACCURACY``, at every blur measured (``benchmarks/chessboard_detectors.py``)."""
+    sector-based ``findChessboardCornersSB`` (finds boards under blur, strong distortion, steep
+    views), then the classic ``findChessboardCorners`` (adaptive threshold), which finds some
+    boards SB misses (uneven light); not thorough (a real-time loop): the classic one only. The
+    classic detector always runs with its fast check: without it, it can search for tens of
+    seconds in an image holding part of a board (measured: 26 s on a 1280×720 view with half
+    the board out of the image, 0.04 s with the check). SB's exhaustive search is not tried: it
+    costs several SB runs per missed image. Whichever found them, the corners are refined by
+    ``cornerSubPix`` (window ~30 % of the corner spacing), which beats SB's own sub-pixel
+    estimate, with or without ``CALIB_CB_ACCURACY`` (``benchmarks/board_detection.py``)."""
     import cv2
     n = size[0] * size[1]
     attempts = []
     if thorough:
         attempts.append(("findChessboardCornersSB",
                          lambda: cv2.findChessboardCornersSB(grey, size, flags=_sb_flags())))
-    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-    if not thorough:
-        flags |= cv2.CALIB_CB_FAST_CHECK
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
     attempts.append(("findChessboardCorners",
                      lambda: cv2.findChessboardCorners(grey, size, flags=flags)))
-    if thorough:
-        attempts.append(("findChessboardCornersSB (exhaustive)",
-                         lambda: cv2.findChessboardCornersSB(
-                             grey, size, flags=_sb_flags() | cv2.CALIB_CB_EXHAUSTIVE)))
     for which, attempt in attempts:
         found, corners = attempt()
         if found and corners is not None and len(corners) == n:
@@ -252,8 +249,9 @@ def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> s
             max(cols_seen, rows_seen) > max(target.cols, target.rows):
         return (f"{spec} not found: a {cols_seen}x{rows_seen} board is seen — COLSxROWS counts "
                 f"INNER corners (squares − 1); is the spec right?")
-    return (f"{spec} not found: only {seen} is seen, inside the image — part of the board "
-            f"hidden (glare, an occluder), or COLSxROWS (inner corners) wrong?")
+    return (f"{spec} not found: only {seen} is seen, away from the image's edges — the rest "
+            f"out of view, hidden (glare, an occluder) or too blurred, or COLSxROWS (inner "
+            f"corners) wrong?")
 
 
 def _canonical_order(points: np.ndarray, target) -> np.ndarray:
