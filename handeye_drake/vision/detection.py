@@ -368,6 +368,13 @@ def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
                f"{n} circles needed in a {target.cols}x{target.rows} {kind} grid "
                + ("— board partly out of view, too small or too blurred?" if len(blobs) < n
                   else "— other blobs in the way, or COLSxROWS wrong?"))
+        if len(blobs) >= n and thorough and target.cols != target.rows:
+            # COLS and ROWS the other way round (circles per row, rows)?
+            found, _ = cv2.findCirclesGrid(grey, (target.rows, target.cols), flags=base,
+                                           blobDetector=_blob_detector(target.white, max_area))
+            if found:
+                why = (f"the grid is found as {target.rows}x{target.cols}: COLS counts the "
+                       f"circles in a row, ROWS the rows — swap them in the spec")
     return (np.zeros(0, int), np.zeros((0, 2)),
             f"{kind} circle grid {target.cols}x{target.rows} not found: {why}", "")
 

@@ -172,3 +172,14 @@ def test_a_grid_half_out_of_view_says_so():
     assert re.fullmatch(r"asymmetric circle grid 7x11 not found: \d+ white blobs seen, 77 circles "
                         r"needed in a 7x11 asymmetric grid — board partly out of view, too small "
                         r"or too blurred\?", det.reason), det.reason
+
+
+def test_cols_and_rows_the_wrong_way_round_are_named():
+    # (A symmetric grid read the other way round is the same board turned a quarter: found.)
+    board = "acircles:4x11:0.02"
+    X = board_pose(board, distance=0.55)
+    det = detect_target(view(board, K, X, noise=2.0), "acircles:11x4:0.02", K)
+    assert not det.found
+    assert det.reason == ("asymmetric circle grid 11x4 not found: the grid is found as 4x11: "
+                          "COLS counts the circles in a row, ROWS the rows — swap them in the "
+                          "spec")
