@@ -216,10 +216,9 @@ def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> s
     ``CALIB_CB_LARGER``): where it is, how sharp (``estimateChessboardSharpness``)."""
     import cv2
     spec = f"chessboard {target.cols}x{target.rows}"
-    lo, hi = np.percentile(grey, [1, 99])
-    if hi - lo < 25:
-        return (f"{spec} not found: the image has almost no contrast (grey levels 1–99 % "
-                f"between {lo:.0f} and {hi:.0f}: too dark, overexposed or covered?)")
+    flat = _no_contrast_reason(grey, spec, 25.0)
+    if flat:
+        return flat
     if not thorough:
         return (f"{spec} not found by the fast detector (all {target.cols * target.rows} inner "
                 f"corners must be visible, with a white border around the board)")
@@ -270,8 +269,24 @@ def _canonical_order(points: np.ndarray, target) -> np.ndarray:
     return best
 
 
+#: Below this grey-level range (1–99 %) an image holds no board (a lens cap, a black frame):
+#: not searched (the classic detector can take seconds over sensor noise).
+_MIN_RANGE = 8.0
+
+
+def _no_contrast_reason(grey, what: str, threshold: float) -> str:
+    lo, hi = np.percentile(grey[::2, ::2], [1, 99])
+    if hi - lo >= threshold:
+        return ""
+    return (f"{what} not found: the image has almost no contrast (grey levels 1–99 % between "
+            f"{lo:.0f} and {hi:.0f}: too dark, overexposed or covered?)")
+
+
 def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
     size = (target.cols, target.rows)
+    flat = _no_contrast_reason(grey, f"chessboard {target.cols}x{target.rows}", _MIN_RANGE)
+    if flat:
+        return np.zeros(0, int), np.zeros((0, 2)), flat, ""
     corners, which = _find_chessboard(grey, size, thorough)
     n = target.cols * target.rows
     if corners is None:
@@ -358,10 +373,9 @@ def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
                              f"motion")
             return np.arange(n), pts, "", "; ".join(notes)
     kind = "asymmetric" if target.asymmetric else "symmetric"
-    lo, hi = np.percentile(grey, [1, 99])
-    if hi - lo < 25:
-        why = (f"the image has almost no contrast (grey levels 1–99 % between {lo:.0f} and "
-               f"{hi:.0f})")
+    flat = _no_contrast_reason(grey, "", 25.0)
+    if flat:
+        why = flat.removeprefix(" not found: ")
     else:
         blobs = _blob_detector(target.white, max_area).detect(grey)
         why = (f"{len(blobs)} {'white' if target.white else 'black'} blobs seen, "
