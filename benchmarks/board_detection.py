@@ -157,7 +157,8 @@ def chessboards(n: int, seed: int) -> None:
             if e is not None:
                 found[k] += 1
                 errors[k].append(e)
-    print(f"chessboard 9x11 in {n} views of 1280×720 px, k1 −0.18, blur σ 0–3 px, uneven light (seed {seed})")
+    print(f"chessboard 9x11 in {n} views of 1280×720 px, k1 −0.18, blur σ 0–3 px, uneven "
+          f"light (seed {seed})")
     print(f"  {'detector':<28} {'found':>7} {'corner error, max per board (px)':>36}")
     for k in names:
         e = np.array(errors[k])

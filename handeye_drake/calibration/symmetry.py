@@ -15,8 +15,8 @@ not, in general, for the others.
 ``resolve`` picks for every view the labelling whose motions agree best with the robot's against
 all the other views (each view in turn as the reference, the most consistent assignment kept).
 Two views decide their relative labelling when every other one costs at least ``DECIDED``
-more (χ² units; a pair's cost is its angle difference over ``ANGLE_TOL_DEG`` squared plus, for turns of 15° or
-more, its screw-slide difference over ``SLIDE_TOL_M`` squared, capped at ``PAIR_CAP`` so that a
+more (χ² units; a pair's cost is its angle difference over ``ANGLE_TOL_DEG`` squared plus, for
+turns of 15° or more, its screw-slide difference over ``SLIDE_TOL_M`` squared, capped at ``PAIR_CAP`` so that a
 bad pair cannot dominate). Views left undecided are dropped with the reason; the typical cause
 is motions that turn the board by ~90° about its normal between views (then θ and 180° − θ give
 the same angle and the same slide); the views joined by deciding pairs form groups whose labels

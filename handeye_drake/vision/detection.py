@@ -15,9 +15,9 @@ uncertainty:
    ``cv2.findCirclesGrid`` with a blob detector for circles of any size, the stated polarity
    first, then the other; the blob centroids are moved to the images of the circles' centres
    by the shift perspective and distortion predict at the estimated pose
-   (``correct_circle_centres``; docs/targets.md). ChArUco — ``cv2.aruco.CharucoDetector`` (its corners are refined by
-   ``cornerSubPix``); when markers are found but no board, the other legacy setting is tried and
-   ``note`` says which one matched. AprilTag (one tag or a grid) — ``cv2.aruco.ArucoDetector``
+   (``correct_circle_centres``; docs/targets.md). ChArUco — ``cv2.aruco.CharucoDetector``
+   (its corners are refined by ``cornerSubPix``); when markers are found but no board, the
+   other legacy setting is tried and ``note`` says which one matched. AprilTag (one tag or a grid) — ``cv2.aruco.ArucoDetector``
    with the ``DICT_APRILTAG_*`` dictionary, then each corner is moved to the intersection of the
    two border edges, fitted to sub-pixel edge points (OpenCV's ``CORNER_REFINE_SUBPIX`` is biased
    by ~0.2 px towards the tag centre on these outer corners; the APRILTAG method is 40× slower);
@@ -204,7 +204,8 @@ def _edge_reason(points: np.ndarray, shape, spacing: float) -> str:
     """Which image borders points lie within ~one grid spacing of ("" if none)."""
     h, w = shape
     m = max(1.5 * spacing, 4.0)
-    sides = [name for name, near in (("left", points[:, 0] < m), ("right", points[:, 0] > w - 1 - m),
+    sides = [name for name, near in (("left", points[:, 0] < m),
+                                     ("right", points[:, 0] > w - 1 - m),
                                      ("top", points[:, 1] < m),
                                      ("bottom", points[:, 1] > h - 1 - m)) if np.any(near)]
     return " and ".join(sides)
@@ -231,7 +232,8 @@ def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> s
     rows_seen, cols_seen = meta.shape[:2]
     grid = part.reshape(rows_seen, cols_seen, 2)
     spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
-    seen = f"a block of {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} of its inner corners"
+    seen = (f"a block of {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} of its inner "
+            f"corners")
     sides = _edge_reason(part, grey.shape, spacing)
     if sides:
         return (f"{spec} not found: only {seen} is seen, at the image's {sides} edge — the board "

@@ -88,9 +88,8 @@ def test_symmetries_map_the_points_and_colours_onto_themselves(spec, turns):
 def test_rendered_discs_are_centred_on_the_circle_centres(spec):
     image, A = render_target(spec, 2000.0, margin=0.01)
     target = parse_target(spec)
+    # The discs' weight: dark on white, light on the black board of a white-circle grid.
     dark = (255.0 - image) if not target.white else image.astype(float)
-    if target.white:  # only the board's black background and the discs: discs are light
-        x0, y0, x1, y1 = pattern_extent(spec)
     for x, y, r in circles(spec):
         u, v = (A @ [x, y, 1.0])[:2]
         R = int(math.ceil(r * 2000.0 * 1.3))
@@ -98,7 +97,8 @@ def test_rendered_discs_are_centred_on_the_circle_centres(spec):
         patch = dark[cv_ - R:cv_ + R + 1, cu - R:cu + R + 1]
         uu, vv = np.meshgrid(np.arange(cu - R, cu + R + 1), np.arange(cv_ - R, cv_ + R + 1))
         w = patch - patch.min()
-        assert abs((w * uu).sum() / w.sum() - u) < 0.01 and abs((w * vv).sum() / w.sum() - v) < 0.01
+        assert abs((w * uu).sum() / w.sum() - u) < 0.01
+        assert abs((w * vv).sum() / w.sum() - v) < 0.01
         # Area to within a few tenths of a percent.
         assert w.sum() / (w.max()) == pytest.approx(math.pi * (r * 2000.0) ** 2, rel=5e-3)
 

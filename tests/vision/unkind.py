@@ -43,9 +43,8 @@ def view(spec, K: CameraIntrinsics, X_CT, blur_px: float = 0.0, noise: float = 0
     Hm = Kp @ np.column_stack([X_CT[:3, 0], X_CT[:3, 1], X_CT[:3, 3]]) @ np.linalg.inv(A)
     S = np.diag([2.0, 2.0, 1.0])
     S[:2, 2] = 0.5
-    big = cv2.warpPerspective(texture, S @ Hm, (2 * W, 2 * H), flags=cv2.INTER_AREA
-                              if False else cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                              borderValue=background)
+    big = cv2.warpPerspective(texture, S @ Hm, (2 * W, 2 * H), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=background)
     img = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)
     if K.distortion:
         u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
