@@ -87,3 +87,36 @@ def test_an_undecidable_recording_is_refused_with_the_cause(tmp_path):
                                          r"same after a turn and the robot's motion decides "
                                          r"which way round it is in only 2 of 4 views"):
         resolve_symmetric_board(streams, "eye_in_hand")
+
+
+def test_stamped_streams_pair_by_nearest_time_and_keep_the_robot_stream():
+    """The bag path: the robot stream (tf, denser than the images) is kept whole; each image
+    is judged against the robot pose nearest its stamp."""
+    from handeye_drake.calibration.inputs import Streams, resolve_symmetric_board
+    from handeye_drake.recorded.formats import pose_stream
+    from handeye_drake.vision.detection import TargetDetection
+    from handeye_drake.vision.targets import object_points
+    rng = np.random.default_rng(4)
+    spec = "chessboard:7x5:0.03"
+    X_BE, X_true = _views("eye_in_hand", 10, rng)
+    turns = np.array([np.eye(4)] + [G for G, _ in target_symmetries(spec)])
+    flipped = np.arange(10) % 3 == 1
+    X_CT = np.array([X @ turns[1] if f else X for X, f in zip(X_true, flipped)])
+    stamps = 10.0 + np.arange(10) * 2.0
+    # tf every 0.5 s: the pose at each image stamp, and others in between.
+    robot_t = np.sort(np.concatenate([stamps, stamps + 0.5, stamps + 1.0]))
+    robot = np.array([X_BE[min(int((t - 10.0 + 0.25) // 2.0), 9)] for t in robot_t])
+    ids, p = object_points(spec)
+    dets = [TargetDetection(True, "", ids, np.zeros((len(ids), 2)), p, X, 0.1, np.eye(6), 0.1)
+            for X in X_CT]
+    streams = Streams(pose_stream(robot, robot_t), pose_stream(X_CT, stamps),
+                      {"images": {"target": spec}}, detections=dets)
+    out = resolve_symmetric_board(streams, "eye_in_hand")
+    assert len(out.robot) == len(robot_t) and len(out.camera) == 10
+    assert out.inputs["images"]["symmetry"]["turned_back"] == int(flipped.sum())
+    np.testing.assert_allclose(out.camera.poses, X_true, atol=1e-9)
+    perm = target_symmetries(spec)[0][1]
+    for det, f in zip(out.detections, flipped):
+        np.testing.assert_array_equal(det.ids, perm if f else ids)
+        # Relabelled points and object points agree: id k sits at object point k.
+        np.testing.assert_allclose(det.object_points, p[det.ids], atol=1e-12)
