@@ -740,9 +740,11 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
             best one's (itself floored at √2·min_pixel_sigma) makes the pose ambiguous (if the
             two poses differ beyond the covariance).
         max_reprojection_rms_px: above this RMS the correspondences are deemed wrong.
-        thorough: when the fast chessboard detector fails, try ``findChessboardCornersSB``
-            (finds ~20 % more boards in blurred or steep views, but costs ~80 ms on a 640×480
-            frame without a board; a real-time loop that often loses the board may pass False).
+        thorough: chessboards: ``findChessboardCornersSB`` first, the classic detector as
+            the fallback, and a probe that names why a board was missed (SB costs a few hundred
+            ms on a 1280×720 frame; a real-time loop may pass False: the classic detector with
+            its fast check only). Circle grids: also try the other polarity and, on a miss,
+            COLS and ROWS swapped.
         correct_circle_centres: circle grids: move each measured circle centroid to where the
             circle's centre projects, by the shift the perspective and the lens predict at the
             estimated pose (``image_points`` are then the corrected points). False keeps the
