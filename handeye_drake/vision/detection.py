@@ -286,7 +286,8 @@ def _no_contrast_reason(grey, what: str, threshold: float) -> str:
 
 def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
     size = (target.cols, target.rows)
-    flat = _no_contrast_reason(grey, f"chessboard {target.cols}x{target.rows}", _MIN_RANGE)
+    flat = thorough and _no_contrast_reason(grey, f"chessboard {target.cols}x{target.rows}",
+                                            _MIN_RANGE)
     if flat:
         return np.zeros(0, int), np.zeros((0, 2)), flat, ""
     corners, which = _find_chessboard(grey, size, thorough)
