@@ -4,7 +4,8 @@
 ``X_CT`` (the target frame T of ``vision.targets`` in the OpenCV camera frame C) and its
 uncertainty:
 
-1. points: chessboard — ``cv2.findChessboardCornersSB``, falling back on the classic
+1. points: chessboard — ``cv2.findChessboardCornersSB`` (image normalized, then OpenCV's
+   default flags), falling back on the classic
    ``findChessboardCorners`` with its fast check (``thorough=False``: the classic one only),
    then ``cornerSubPix``; when no complete board is
    found the reason says what is seen (no contrast, a part of the board at an image edge, edges
@@ -171,7 +172,8 @@ def _sb_flags():
 def _find_chessboard(grey, size, thorough: bool):
     """(corners (n, 1, 2) float32 or None, which detector found them). Thorough: OpenCV's
     sector-based ``findChessboardCornersSB`` (finds boards under blur, strong distortion, steep
-    views), then the classic ``findChessboardCorners`` (adaptive threshold), which finds some
+    views; image normalized, then OpenCV's default flags), then the classic
+    ``findChessboardCorners`` (adaptive threshold), which finds some
     boards SB misses (uneven light); not thorough (a real-time loop): the classic one only. The
     classic detector always runs with its fast check: without it, it can search for tens of
     seconds in an image holding part of a board (measured: 26 s on a 1280×720 view with half
@@ -183,8 +185,12 @@ def _find_chessboard(grey, size, thorough: bool):
     n = size[0] * size[1]
     attempts = []
     if thorough:
+        # With the histogram equalized (found 14 of 16 unkind views against 12 without), then
+        # as OpenCV's default call does (a board either finds is a board).
         attempts.append(("findChessboardCornersSB",
                          lambda: cv2.findChessboardCornersSB(grey, size, flags=_sb_flags())))
+        attempts.append(("findChessboardCornersSB",
+                         lambda: cv2.findChessboardCornersSB(grey, size, flags=0)))
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
     attempts.append(("findChessboardCorners",
                      lambda: cv2.findChessboardCorners(grey, size, flags=flags)))
