@@ -12,7 +12,8 @@ off across the image to 35–100 % at 50–100 % exposure, noise σ 2 grey level
 the image.
 Counts the boards found by ``findChessboardCorners`` (classic, adaptive threshold, fast check),
 the chain ``detect_target`` used before (classic, then SB),
-``findChessboardCornersSB`` and ``detect_target`` (SB, then classic with its fast check), the
+``findChessboardCornersSB`` (with ``CALIB_CB_NORMALIZE_IMAGE``, and with the default flags)
+and ``detect_target`` (SB normalized, SB default, then classic with its fast check), the
 corner errors against the true projections (max over a board, median over boards) of SB alone,
 SB + ``CALIB_CB_ACCURACY``, SB + ``cornerSubPix`` (what ``detect_target`` reports) and classic
 + ``cornerSubPix``, and each detector's time as a ratio to the classic one measured in the same
@@ -104,7 +105,8 @@ def chessboards(n: int, seed: int) -> None:
     texture = render_target(CHESS, 6000.0, margin=0.02)
     _, p = object_points(CHESS)
     size = (9, 11)
-    names = ("classic", "classic, then SB (before)", "SB", "SB+ACCURACY", "SB+cornerSubPix",
+    names = ("classic", "classic, then SB (before)", "SB", "SB default flags", "SB+ACCURACY",
+             "SB+cornerSubPix",
              "classic+cornerSubPix", "detect_target")
     found = dict.fromkeys(names, 0)
     errors = {k: [] for k in names}
@@ -138,6 +140,7 @@ def chessboards(n: int, seed: int) -> None:
         t = time.perf_counter()
         ok_a, c_a = cv2.findChessboardCornersSB(img, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE
                                                 | cv2.CALIB_CB_ACCURACY)
+        ok_0, c_0 = cv2.findChessboardCornersSB(img, size)
         times["SB+ACCURACY"] += time.perf_counter() - t
         t = time.perf_counter()
         det = detect_target(img, CHESS, REAL)
@@ -147,7 +150,7 @@ def chessboards(n: int, seed: int) -> None:
         # What detect_target did before: classic, else SB; then cornerSubPix.
         ok_f, c_f = (ok_c, c_c) if ok_c else (ok_s, c_s)
         c_f = subpix(img, c_f) if ok_f else None
-        results = {"classic": (ok_c, c_c), "SB": (ok_s, c_s),
+        results = {"classic": (ok_c, c_c), "SB": (ok_s, c_s), "SB default flags": (ok_0, c_0),
                    "classic, then SB (before)": (ok_f, c_f), "SB+ACCURACY": (ok_a, c_a),
                    "SB+cornerSubPix": (ok_s, subpix(img, c_s) if ok_s else None),
                    "classic+cornerSubPix": (ok_c, subpix(img, c_c) if ok_c else None),
