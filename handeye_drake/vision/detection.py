@@ -312,7 +312,7 @@ def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
     return np.arange(n), corners.reshape(-1, 2).astype(float), "", note
 
 
-def _blob_detector(white: bool, max_area: float):
+def _blob_detector(white: bool, max_area: float, min_area: float = 9.0):
     """``cv2.SimpleBlobDetector`` for the circles of a grid: dark (or ``white``) blobs of
     9 px² up to ``max_area`` px² (OpenCV's default stops at 5000 px², a circle of 80 px: too
     small for a board filling a large image), round to elliptic (steep views: inertia ratio
@@ -325,7 +325,7 @@ def _blob_detector(white: bool, max_area: float):
     p.minRepeatability = 2
     p.minDistBetweenBlobs = 2.0
     p.filterByArea = True
-    p.minArea, p.maxArea = 9.0, float(max(max_area, 100.0))
+    p.minArea, p.maxArea = float(min_area), float(max(max_area, 100.0))
     p.filterByCircularity = True
     p.minCircularity = 0.5
     p.filterByConvexity = True
@@ -354,13 +354,22 @@ def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
     n = target.cols * target.rows
     base = cv2.CALIB_CB_ASYMMETRIC_GRID if target.asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
     max_area = grey.size / n
-    tries = [(target.white, base), (target.white, base | cv2.CALIB_CB_CLUSTERING)]
+    tries = [(target.white, base, 9.0), (target.white, base | cv2.CALIB_CB_CLUSTERING, 9.0)]
     if thorough:
-        tries += [(not target.white, base), (not target.white, base | cv2.CALIB_CB_CLUSTERING)]
-    for white, flags in tries:
+        tries += [(target.white, base, None), (not target.white, base, 9.0),
+                  (not target.white, base | cv2.CALIB_CB_CLUSTERING, 9.0)]
+    for white, flags, min_area in tries:
+        if min_area is None:
+            # Small blobs in the way (specks, a board edge's dark line): keep blobs of at least
+            # ~15 % of the area of the n-th largest one (far circles look smaller, not 7× so).
+            sizes = sorted((k.size for k in _blob_detector(white, max_area).detect(grey)),
+                           reverse=True)
+            if len(sizes) <= n:
+                continue
+            min_area = max(9.0, 0.15 * math.pi / 4.0 * sizes[n - 1] ** 2)
         try:
-            found, centres = cv2.findCirclesGrid(grey, size, flags=flags,
-                                                 blobDetector=_blob_detector(white, max_area))
+            found, centres = cv2.findCirclesGrid(
+                grey, size, flags=flags, blobDetector=_blob_detector(white, max_area, min_area))
         except cv2.error:
             found, centres = False, None
         if found and centres is not None and len(centres) == n:
