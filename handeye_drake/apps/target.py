@@ -60,7 +60,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "SVG and a PDF beside it. SPEC: chessboard:COLSxROWS:SQUARE (inner corners), "
                     "charuco:SQUARESXxSQUARESY:SQUARE:MARKER:DICT[:legacy], "
                     "apriltag:FAMILY:SIZE[:ID], aprilgrid:FAMILY:COLSxROWS:SIZE:SPACING[:FIRST_ID]"
-                    "; sizes in metres.")
+                    ", circles:COLSxROWS:SPACING[:DIAMETER][:white], "
+                    "acircles:COLSxROWS:SPACING[:DIAMETER][:white] (circle grids, white: white "
+                    "circles on black); sizes in metres.")
     p.add_argument("spec", metavar="SPEC", help="the target, e.g. chessboard:9x6:0.0236")
     p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
                    help=f"output directory (default {DEFAULT_OUT}): target.png (with its dpi), "

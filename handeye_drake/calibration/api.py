@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from .corners import REFINE_CHOICES, calibrate_images
 from .euler_check import check_robot_euler, explain_failure
 from .inputs import (DEFAULT_MAX_IMAGES, Streams, bag_image_streams, bag_streams, file_streams,
-                     image_streams)
+                     image_streams, resolve_symmetric_board)
 from .pipeline import CalibrationResult, calibrate_streams
 from ..recorded.formats import MAX_TRANSLATION
 
@@ -112,6 +112,8 @@ def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()
     """The stages after reading, on ``Streams`` (``inputs``' readers make them): the pose-level
     fit, and for image inputs the corner-level fit that answers (except with held components,
     which the corner-level fit does not take yet)."""
+    # A board that looks the same after a turn: the robot's motion decides each view's labels.
+    streams = resolve_symmetric_board(streams, options.mode)
     corner_level = bool(streams.detections) and not options.fixed
     settings = options.stream_settings(streams, corner_level)
     # A robot file of Euler angles: its convention is checked against the data like the other

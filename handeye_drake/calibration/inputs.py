@@ -601,3 +601,90 @@ def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrins
                                                                intrinsics_std)
     return Streams(data.robot, camera, inputs, (), records, intrinsics, resampler,
                    [d for _, d in kept], "given" if intrinsics_std is None else "self-calibrated")
+
+
+def resolve_symmetric_board(streams: Streams, mode: str) -> Streams:
+    """For a board that looks the same after a turn (``targets.target_symmetries``): relabels
+    each view's points and X_CT the way the robot's motion says (``calibration.symmetry``),
+    drops the views it cannot decide (their records say why) and notes what was done in
+    ``streams.inputs["images"]["symmetry"]``. Other boards and pose inputs: ``streams`` as is.
+    Bag images pair with the robot pose nearest in time (the clock offset, estimated later, is
+    assumed small against the robot's motion between views)."""
+    from ..vision.targets import format_target, object_points, parse_target, target_symmetries
+    from .symmetry import resolve, undecided_reason
+    info = streams.inputs.get("images") if isinstance(streams.inputs, dict) else None
+    if not streams.detections or not info or not info.get("target"):
+        return streams
+    target = parse_target(info["target"])
+    symmetries = target_symmetries(target)
+    if not symmetries:
+        return streams
+    turns = np.array([np.eye(4)] + [G for G, _ in symmetries])
+    perms = [object_points(target)[0]] + [p for _, p in symmetries]
+    cam = streams.camera
+    if cam.timestamps is not None and streams.robot.timestamps is not None:
+        t = np.asarray(streams.robot.timestamps)
+        k = np.clip(np.searchsorted(t, cam.timestamps), 1, len(t) - 1)
+        k -= (cam.timestamps - t[k - 1]) < (t[k] - cam.timestamps)
+        X_BE = streams.robot.poses[k]
+    else:
+        X_BE = streams.robot.poses
+    labels, decided = resolve(X_BE, cam.poses, turns, mode)
+    found_records = [r for r in streams.images if r.found]
+    detections = []
+    for det, label in zip(streams.detections, labels):
+        if label:
+            G = turns[label]
+            det = dataclasses.replace(det, ids=np.asarray(perms[label])[det.ids],
+                                      object_points=det.object_points @ G[:3, :3].T + G[:3, 3],
+                                      X_CT=det.X_CT @ _rigid_inverse(G))
+        detections.append(det)
+    name = format_target(target)
+    keep = np.flatnonzero(decided)
+    for k in np.flatnonzero(~decided):
+        if k < len(found_records):
+            found_records[k].found = False
+            found_records[k].reason = undecided_reason(name)
+    for k in np.flatnonzero(labels & decided):
+        if k < len(found_records):
+            found_records[k].reason = "; ".join(x for x in (
+                found_records[k].reason, "board labelled from its other end by the detector: "
+                "turned back (the robot's motion decides)") if x)
+    info["symmetry"] = {"turns": len(turns), "turned_back": int(np.sum((labels > 0) & decided)),
+                        "undecided": int(np.sum(~decided)), "views": len(labels),
+                        "note": (f"{name} looks the same after a turn: {int(np.sum(labels > 0))}"
+                                 f" of {len(labels)} views were labelled from the board's other "
+                                 f"end and turned back, as the robot's motion says"
+                                 + (f"; {int(np.sum(~decided))} views the motion cannot decide "
+                                    "left out" if np.any(~decided) else ""))}
+    if len(keep) < 3:
+        raise ValueError(f"--target {name}: the board looks the same after a turn and the robot's "
+                         f"motion decides which way round it is in only {len(keep)} of "
+                         f"{len(labels)} views (≥ 3 needed): move the robot so that the views "
+                         "differ by turns other than ~90° about the board's normal, or use a board "
+                         "whose orientation is printed (chessboard with COLS + ROWS odd, ChArUco)")
+    poses = np.array([d.X_CT for d in detections])[keep]
+    camera = pose_stream(poses, None if cam.timestamps is None else cam.timestamps[keep],
+                         source=cam.source, lines=[cam.lines[k] for k in keep])
+    robot = streams.robot
+    if cam.timestamps is None or robot.timestamps is None:
+        robot = PoseStream(robot.poses[keep], None, robot.source,
+                           tuple(int(robot.lines[k]) for k in keep), robot.sha256)
+    if "detected" in info:
+        info["detected"] = len(keep)
+    resampler = streams.camera_resampler
+    if resampler is not None:
+        undo = np.array([_rigid_inverse(turns[label]) for label in labels[keep]])
+        old = resampler
+
+        def resampler(rng):  # the intrinsics-resampled poses, relabelled the same way
+            return np.einsum("nab,nbc->nac", old(rng)[keep], undo)
+    return dataclasses.replace(streams, robot=robot, camera=camera, camera_resampler=resampler,
+                               detections=[detections[k] for k in keep])
+
+
+def _rigid_inverse(X: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = X[:3, :3].T
+    out[:3, 3] = -X[:3, :3].T @ X[:3, 3]
+    return out

@@ -4,12 +4,21 @@
 ``X_CT`` (the target frame T of ``vision.targets`` in the OpenCV camera frame C) and its
 uncertainty:
 
-1. points: chessboard — ``cv2.findChessboardCorners`` (falling back on
-   ``findChessboardCornersSB``) then ``cornerSubPix``; the corner order is tied to the printed
-   colours (see ``vision.targets``), so the two OpenCV detectors, which disagree on it, give the
-   same ids. ChArUco — ``cv2.aruco.CharucoDetector`` (its corners are refined by
-   ``cornerSubPix``); when markers are found but no board, the other legacy setting is tried and
-   ``note`` says which one matched. AprilTag (one tag or a grid) — ``cv2.aruco.ArucoDetector``
+1. points: chessboard — ``cv2.findChessboardCornersSB`` (image normalized, then OpenCV's
+   default flags), falling back on the classic
+   ``findChessboardCorners`` with its fast check (``thorough=False``: the classic one only),
+   then ``cornerSubPix``; when no complete board is
+   found the reason says what is seen (no contrast, a part of the board at an image edge, edges
+   too blurred, a larger board than the spec). The corner order is tied to the printed colours
+   (see ``vision.targets``), so the OpenCV detectors, which disagree on it, give the same ids;
+   a board that looks the same after a half turn is labelled from the end nearest the image's
+   top-left corner, and ``calibration.symmetry`` lets the robot's motion decide. Circle grids —
+   ``cv2.findCirclesGrid`` with a blob detector for circles of any size, the stated polarity
+   first, then the other; the blob centroids are moved to the images of the circles' centres
+   by the shift perspective and distortion predict at the estimated pose
+   (``correct_circle_centres``; docs/targets.md). ChArUco — ``cv2.aruco.CharucoDetector``
+   (its corners are refined by ``cornerSubPix``); when markers are found but no board, the
+   other legacy setting is tried and ``note`` says which one matched. AprilTag (one tag or a grid) — ``cv2.aruco.ArucoDetector``
    with the ``DICT_APRILTAG_*`` dictionary, then each corner is moved to the intersection of the
    two border edges, fitted to sub-pixel edge points (OpenCV's ``CORNER_REFINE_SUBPIX`` is biased
    by ~0.2 px towards the tag centre on these outer corners; the APRILTAG method is 40× slower);
@@ -49,10 +58,13 @@ from .targets import (
     AprilTagTarget,
     CharucoTarget,
     ChessboardTarget,
+    CircleGridTarget,
     charuco_board,
+    circles,
     get_dictionary,
     object_points as target_object_points,
     target_dictionary_name,
+    target_symmetries,
     validate_target,
 )
 
@@ -152,27 +164,279 @@ def _subpix_window(points: np.ndarray, grid_cols: int) -> int:
     return int(np.clip(round(0.3 * spacing), 2, 7))
 
 
-def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
+def _sb_flags():
     import cv2
-    size = (target.cols, target.rows)
+    return cv2.CALIB_CB_NORMALIZE_IMAGE
+
+
+def _find_chessboard(grey, size, thorough: bool):
+    """(corners (n, 1, 2) float32 or None, which detector found them). Thorough: OpenCV's
+    sector-based ``findChessboardCornersSB`` (finds boards under blur, strong distortion, steep
+    views; image normalized, then OpenCV's default flags), then the classic
+    ``findChessboardCorners`` (adaptive threshold), which finds some
+    boards SB misses (uneven light); not thorough (a real-time loop): the classic one only. The
+    classic detector always runs with its fast check: without it, it can search for tens of
+    seconds in an image holding part of a board (measured: 26 s on a 1280×720 view with half
+    the board out of the image, 0.04 s with the check). SB's exhaustive search is not tried: it
+    costs several SB runs per missed image. Whichever found them, the corners are refined by
+    ``cornerSubPix`` (window ~30 % of the corner spacing), which beats SB's own sub-pixel
+    estimate, with or without ``CALIB_CB_ACCURACY`` (``benchmarks/board_detection.py``)."""
+    import cv2
+    n = size[0] * size[1]
+    attempts = []
+    if thorough:
+        # With the histogram equalized (found 14 of 16 unkind views against 12 without), then
+        # as OpenCV's default call does (a board either finds is a board).
+        attempts.append(("findChessboardCornersSB",
+                         lambda: cv2.findChessboardCornersSB(grey, size, flags=_sb_flags())))
+        attempts.append(("findChessboardCornersSB",
+                         lambda: cv2.findChessboardCornersSB(grey, size, flags=0)))
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
-    found, corners = cv2.findChessboardCorners(grey, size, flags=flags)
-    if not found and thorough:
-        found, corners = cv2.findChessboardCornersSB(grey, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    attempts.append(("findChessboardCorners",
+                     lambda: cv2.findChessboardCorners(grey, size, flags=flags)))
+    for which, attempt in attempts:
+        found, corners = attempt()
+        if found and corners is not None and len(corners) == n:
+            corners = np.asarray(corners, np.float32).reshape(-1, 1, 2)
+            w = _subpix_window(corners.reshape(-1, 2), size[0])
+            corners = cv2.cornerSubPix(grey, corners, (w, w), (-1, -1),
+                                       (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 40,
+                                        1e-3))
+            return corners, which
+    return None, ""
+
+
+def _edge_reason(points: np.ndarray, shape, spacing: float) -> str:
+    """Which image borders points lie within ~one grid spacing of ("" if none)."""
+    h, w = shape
+    m = max(1.5 * spacing, 4.0)
+    sides = [name for name, near in (("left", points[:, 0] < m),
+                                     ("right", points[:, 0] > w - 1 - m),
+                                     ("top", points[:, 1] < m),
+                                     ("bottom", points[:, 1] > h - 1 - m)) if np.any(near)]
+    return " and ".join(sides)
+
+
+def _chessboard_miss_reason(grey, target: ChessboardTarget, thorough: bool) -> str:
+    """Why no complete board was found, from what is visible (runs only on a miss): the grey
+    range, then the largest board part ``findChessboardCornersSB`` finds (a 3×3 pattern with
+    ``CALIB_CB_LARGER``): where it is, how sharp (``estimateChessboardSharpness``)."""
+    import cv2
+    spec = f"chessboard {target.cols}x{target.rows}"
+    flat = _no_contrast_reason(grey, spec, 25.0)
+    if flat:
+        return flat
+    if not thorough:
+        return (f"{spec} not found by the fast detector (all {target.cols * target.rows} inner "
+                f"corners must be visible, with a white border around the board)")
+    found, corners, meta = cv2.findChessboardCornersSBWithMeta(
+        grey, (3, 3), flags=_sb_flags() | cv2.CALIB_CB_LARGER)
+    if not found or corners is None or meta is None:
+        return (f"{spec} not found: no chessboard corners seen (board out of view, too small, "
+                f"too blurred, or glare on it?)")
+    part = np.asarray(corners, float).reshape(-1, 2)
+    rows_seen, cols_seen = meta.shape[:2]
+    grid = part.reshape(rows_seen, cols_seen, 2)
+    spacing = float(np.median(np.linalg.norm(np.diff(grid, axis=1), axis=2)))
+    seen = (f"a block of {max(cols_seen, rows_seen)}×{min(cols_seen, rows_seen)} of its inner "
+            f"corners")
+    sides = _edge_reason(part, grey.shape, spacing)
+    if sides:
+        return (f"{spec} not found: only {seen} is seen, at the image's {sides} edge — the board "
+                f"is partly out of view")
+    try:
+        sharpness = float(cv2.estimateChessboardSharpness(
+            grey, (cols_seen, rows_seen), part.reshape(-1, 1, 2).astype(np.float32))[0][0])
+    except cv2.error:
+        sharpness = float("nan")
+    if sharpness > 0.25 * spacing:
+        return (f"{spec} not found: only {seen} is seen and its edges are {sharpness:.1f} px wide "
+                f"for squares of {spacing:.0f} px — too blurred (motion or focus)")
+    if {cols_seen, rows_seen} != {target.cols, target.rows} and \
+            max(cols_seen, rows_seen) > max(target.cols, target.rows):
+        return (f"{spec} not found: a {cols_seen}x{rows_seen} board is seen — COLSxROWS counts "
+                f"INNER corners (squares − 1); is the spec right?")
+    return (f"{spec} not found: only {seen} is seen, away from the image's edges — the rest "
+            f"out of view, hidden (glare, an occluder) or too blurred, or COLSxROWS (inner "
+            f"corners) wrong?")
+
+
+def _canonical_order(points: np.ndarray, target) -> np.ndarray:
+    """Points (n, 2) of a complete grid relabelled, among the board's symmetric labellings
+    (``targets.target_symmetries``), so that point 0 is the one nearest the image's top-left
+    corner: the two OpenCV chessboard detectors (which start from opposite ends) then agree,
+    and the order follows the image, as OpenCV's does. Which way round the board really is in
+    each view is left to the robot's motion (``calibration.symmetry``)."""
+    best, best_key = points, float(points[0].sum())
+    for _, perm in target_symmetries(target):
+        relabelled = np.empty_like(points)
+        relabelled[perm] = points
+        key = float(relabelled[0].sum())
+        if key < best_key - 1e-6:
+            best, best_key = relabelled, key
+    return best
+
+
+#: Below this grey-level range (1–99 %) an image holds no board (a lens cap, a black frame):
+#: not searched (the classic detector can take seconds over sensor noise).
+_MIN_RANGE = 8.0
+
+
+def _no_contrast_reason(grey, what: str, threshold: float) -> str:
+    lo, hi = np.percentile(grey[::2, ::2], [1, 99])
+    if hi - lo >= threshold:
+        return ""
+    return (f"{what} not found: the image has almost no contrast (grey levels 1–99 % between "
+            f"{lo:.0f} and {hi:.0f}: too dark, overexposed or covered?)")
+
+
+def _detect_chessboard(grey, target: ChessboardTarget, thorough: bool):
+    size = (target.cols, target.rows)
+    flat = thorough and _no_contrast_reason(grey, f"chessboard {target.cols}x{target.rows}",
+                                            _MIN_RANGE)
+    if flat:
+        return np.zeros(0, int), np.zeros((0, 2)), flat, ""
+    corners, which = _find_chessboard(grey, size, thorough)
     n = target.cols * target.rows
-    if not found or corners is None or len(corners) != n:
-        return (np.zeros(0, int), np.zeros((0, 2)),
-                f"chessboard {target.cols}x{target.rows} not found (all {n} inner corners must be "
-                f"visible, with a white border around the board)", "")
-    corners = np.asarray(corners, np.float32).reshape(-1, 1, 2)
-    w = _subpix_window(corners.reshape(-1, 2), target.cols)
-    corners = cv2.cornerSubPix(grey, corners, (w, w), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 40, 1e-3))
+    if corners is None:
+        return (np.zeros(0, int), np.zeros((0, 2)), _chessboard_miss_reason(grey, target, thorough),
+                "")
+    corners = _canonical_order(corners.reshape(-1, 2), target)
     note = ""
     if (target.cols + target.rows) % 2 == 0:
         note = (f"chessboard {target.cols}x{target.rows} looks the same after a half turn: its "
-                f"orientation comes from the image (prefer COLS + ROWS odd)")
+                f"orientation in each view is decided by the robot's motion (prefer COLS + ROWS "
+                f"odd)")
+    if which != "findChessboardCornersSB":
+        note = "; ".join(x for x in (note, f"found by the fallback {which}") if x)
     return np.arange(n), corners.reshape(-1, 2).astype(float), "", note
+
+
+def _blob_detector(white: bool, max_area: float, min_area: float = 9.0):
+    """``cv2.SimpleBlobDetector`` for the circles of a grid: dark (or ``white``) blobs of
+    9 px² up to ``max_area`` px² (OpenCV's default stops at 5000 px², a circle of 80 px: too
+    small for a board filling a large image), round to elliptic (steep views: inertia ratio
+    ≥ 0.05), convex, thresholds every 10 grey levels."""
+    import cv2
+    p = cv2.SimpleBlobDetector_Params()
+    p.filterByColor = True
+    p.blobColor = 255 if white else 0
+    p.minThreshold, p.maxThreshold, p.thresholdStep = 10.0, 245.0, 10.0
+    p.minRepeatability = 2
+    p.minDistBetweenBlobs = 2.0
+    p.filterByArea = True
+    p.minArea, p.maxArea = float(min_area), float(max(max_area, 100.0))
+    p.filterByCircularity = True
+    p.minCircularity = 0.5
+    p.filterByConvexity = True
+    p.minConvexity = 0.85
+    p.filterByInertia = True
+    p.minInertiaRatio = 0.05
+    return cv2.SimpleBlobDetector_create(p)
+
+
+def _mirrored(points: np.ndarray, cols: int) -> bool:
+    """The grid's labels run the wrong way round for its printed face: seen from the front,
+    T's x (along a row) then y (down the rows) turn clockwise on the image (u right, v down),
+    so the quadrilateral of the four corner points has a positive signed area."""
+    q = points[[0, cols - 1, len(points) - 1, len(points) - cols]]
+    x, y = q[:, 0], q[:, 1]
+    return float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) < 0.0
+
+
+def _detect_circles(grey, target: CircleGridTarget, thorough: bool):
+    """Circle centres with ``cv2.findCirclesGrid`` (the stated polarity first, then the other
+    one; the default grid finder, then ``CALIB_CB_CLUSTERING``, which copes better with strong
+    perspective and distortion). The points are the blobs' centroids, i.e. the centres of the
+    circles' images, not yet the images of the circles' centres (``_circle_centre_shift``)."""
+    import cv2
+    size = (target.cols, target.rows)
+    n = target.cols * target.rows
+    base = cv2.CALIB_CB_ASYMMETRIC_GRID if target.asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
+    max_area = grey.size / n
+    tries = [(target.white, base, 9.0), (target.white, base | cv2.CALIB_CB_CLUSTERING, 9.0)]
+    if thorough:
+        tries += [(target.white, base, None), (not target.white, base, 9.0),
+                  (not target.white, base | cv2.CALIB_CB_CLUSTERING, 9.0)]
+    for white, flags, min_area in tries:
+        if min_area is None:
+            # Small blobs in the way (specks, a board edge's dark line): keep blobs of at least
+            # ~15 % of the area of the n-th largest one (far circles look smaller, not 7× so).
+            sizes = sorted((k.size for k in _blob_detector(white, max_area).detect(grey)),
+                           reverse=True)
+            if len(sizes) <= n:
+                continue
+            min_area = max(9.0, 0.15 * math.pi / 4.0 * sizes[n - 1] ** 2)
+        try:
+            found, centres = cv2.findCirclesGrid(
+                grey, size, flags=flags, blobDetector=_blob_detector(white, max_area, min_area))
+        except cv2.error:
+            found, centres = False, None
+        if found and centres is not None and len(centres) == n:
+            pts = np.asarray(centres, float).reshape(-1, 2)
+            if not target.asymmetric and _mirrored(pts, target.cols):
+                # findCirclesGrid may read a symmetric grid's rows right to left (a mirror
+                # image: no pose of the printed face fits); read them left to right.
+                pts = pts.reshape(target.rows, target.cols, 2)[:, ::-1].reshape(-1, 2)
+            pts = _canonical_order(pts, target)
+            notes = []
+            if white != target.white:
+                notes.append(f"the circles are {'white on black' if white else 'black on white'}"
+                             f"; the spec says otherwise ({'remove' if target.white else 'add'} "
+                             f"':white')")
+            if target_symmetries(target):
+                notes.append(f"this circle grid looks the same after a "
+                             f"{'quarter' if len(target_symmetries(target)) == 3 else 'half'} "
+                             f"turn: its orientation in each view is decided by the robot's "
+                             f"motion")
+            return np.arange(n), pts, "", "; ".join(notes)
+    kind = "asymmetric" if target.asymmetric else "symmetric"
+    flat = _no_contrast_reason(grey, "", 25.0)
+    if flat:
+        why = flat.removeprefix(" not found: ")
+    else:
+        blobs = _blob_detector(target.white, max_area).detect(grey)
+        why = (f"{len(blobs)} {'white' if target.white else 'black'} blobs seen, "
+               f"{n} circles needed in a {target.cols}x{target.rows} {kind} grid "
+               + ("— board partly out of view, too small or too blurred?" if len(blobs) < n
+                  else "— other blobs in the way, or COLSxROWS wrong?"))
+        if len(blobs) >= n and thorough and target.cols != target.rows:
+            # COLS and ROWS the other way round (circles per row, rows)?
+            found, _ = cv2.findCirclesGrid(grey, (target.rows, target.cols), flags=base,
+                                           blobDetector=_blob_detector(target.white, max_area))
+            if found:
+                why = (f"the grid is found as {target.rows}x{target.cols}: COLS counts the "
+                       f"circles in a row, ROWS the rows — swap them in the spec")
+    return (np.zeros(0, int), np.zeros((0, 2)),
+            f"{kind} circle grid {target.cols}x{target.rows} not found: {why}", "")
+
+
+_CIRCLE_SAMPLES = 64
+
+
+def _circle_centre_shift(X_CT, target: CircleGridTarget, intrinsics) -> np.ndarray:
+    """(n, 2) px: centroid of each circle's image (its rim projected through the lens, as a
+    64-gon, area centroid) minus the image of its centre. Perspective (and distortion) move the
+    first away from the second; the measured blob centres are the first."""
+    import cv2
+    c = circles(target)
+    a = np.linspace(0.0, 2.0 * np.pi, _CIRCLE_SAMPLES, endpoint=False)
+    rim = np.zeros((len(c), _CIRCLE_SAMPLES + 1, 3))
+    rim[:, :-1, 0] = c[:, :1] + c[:, 2:] * np.cos(a)
+    rim[:, :-1, 1] = c[:, 1:2] + c[:, 2:] * np.sin(a)
+    rim[:, -1, :2] = c[:, :2]
+    rvec, _ = cv2.Rodrigues(X_CT[:3, :3])
+    uv, _ = cv2.projectPoints(rim.reshape(-1, 1, 3), rvec, X_CT[:3, 3], intrinsics.K,
+                              intrinsics.distortion_coefficients)
+    uv = uv.reshape(len(c), _CIRCLE_SAMPLES + 1, 2)
+    poly, centre = uv[:, :-1], uv[:, -1]
+    x, y = poly[..., 0] - centre[:, :1], poly[..., 1] - centre[:, 1:]
+    xn, yn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    cross = x * yn - xn * y
+    area = 0.5 * cross.sum(axis=1)
+    cx = ((x + xn) * cross).sum(axis=1) / (6.0 * area)
+    cy = ((y + yn) * cross).sum(axis=1) / (6.0 * area)
+    return np.stack([cx, cy], axis=1)
 
 
 @functools.lru_cache(maxsize=16)
@@ -476,7 +740,8 @@ def _chessboard_reversed(grey, target: ChessboardTarget, X_CT, intrinsics) -> bo
 
 def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int | None = None,
                   min_pixel_sigma: float = 0.05, ambiguity_ratio: float = 3.0,
-                  max_reprojection_rms_px: float = 5.0, thorough: bool = True) -> TargetDetection:
+                  max_reprojection_rms_px: float = 5.0, thorough: bool = True,
+                  correct_circle_centres: bool = True) -> TargetDetection:
     """Detects ``target`` in ``image`` and estimates ``X_CT`` with its covariance.
 
     Args:
@@ -491,9 +756,15 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
             best one's (itself floored at √2·min_pixel_sigma) makes the pose ambiguous (if the
             two poses differ beyond the covariance).
         max_reprojection_rms_px: above this RMS the correspondences are deemed wrong.
-        thorough: when the fast chessboard detector fails, try ``findChessboardCornersSB``
-            (finds ~20 % more boards in blurred or steep views, but costs ~80 ms on a 640×480
-            frame without a board; a real-time loop that often loses the board may pass False).
+        thorough: chessboards: ``findChessboardCornersSB`` first, the classic detector as
+            the fallback, and a probe that names why a board was missed (SB costs a few hundred
+            ms on a 1280×720 frame; a real-time loop may pass False: the classic detector with
+            its fast check only). Circle grids: also try the other polarity and, on a miss,
+            COLS and ROWS swapped.
+        correct_circle_centres: circle grids: move each measured circle centroid to where the
+            circle's centre projects, by the shift the perspective and the lens predict at the
+            estimated pose (``image_points`` are then the corrected points). False keeps the
+            blob centroids (to measure what the correction is worth).
 
     Returns:
         A ``TargetDetection``; ``found=False`` with a ``reason`` when the target is not (or not
@@ -513,6 +784,9 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
     if isinstance(target, ChessboardTarget):
         need = target.cols * target.rows
         ids, pts, reason, note = _detect_chessboard(grey, target, bool(thorough))
+    elif isinstance(target, CircleGridTarget):
+        need = target.cols * target.rows
+        ids, pts, reason, note = _detect_circles(grey, target, bool(thorough))
     else:
         need = 4 if min_points is None else int(min_points)
         if isinstance(target, CharucoTarget):
@@ -538,6 +812,17 @@ def detect_target(image, target, intrinsics: CameraIntrinsics, min_points: int |
         # Same corners, labelled from the other end of the board.
         pts = pts[::-1].copy()
         candidates = _solve_pose(obj, pts, intrinsics)
+    if isinstance(target, CircleGridTarget) and candidates and correct_circle_centres:
+        # The measured points are the circles' image centroids: move them to where the circle
+        # centres project, by the shift predicted at the current pose, twice (the second pass
+        # changes the points by well under 1 % of the shift).
+        measured = pts
+        for _ in range(2):
+            front_now = [c for c in candidates if _sees_front(c[0])] or candidates
+            pts = measured - _circle_centre_shift(front_now[0][0], target, intrinsics)
+            candidates = _solve_pose(obj, pts, intrinsics)
+            if not candidates:
+                break
     front = [c for c in candidates if _sees_front(c[0])]
     if not front:
         reason = ("pose estimation failed" if not candidates else

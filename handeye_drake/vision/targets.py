@@ -1,7 +1,7 @@
 """Calibration targets: spec strings, object points, exact-scale rendering and printable files
 (numpy/OpenCV only).
 
-Four target types, each parsed from a short spec string (``parse_target``) and written back by
+Five target types, each parsed from a short spec string (``parse_target``) and written back by
 ``format_target`` (its exact inverse on canonical specs):
 
 * chessboard: ``chessboard:COLSxROWS:SQUARE``, e.g. ``chessboard:9x6:0.0236``;
@@ -9,7 +9,10 @@ Four target types, each parsed from a short spec string (``parse_target``) and w
   ``charuco:5x7:0.036195:0.018256:DICT_6X6_250``;
 * one AprilTag: ``apriltag:FAMILY:SIZE[:ID]``, e.g. ``apriltag:36h11:0.048:10``;
 * AprilTag grid: ``aprilgrid:FAMILY:TAGSXxTAGSY:SIZE:SPACING[:FIRST_ID]``, e.g.
-  ``aprilgrid:36h11:6x6:0.088:0.3``.
+  ``aprilgrid:36h11:6x6:0.088:0.3``;
+* circle grid, symmetric ``circles:COLSxROWS:SPACING[:DIAMETER][:white]`` or asymmetric
+  ``acircles:COLSxROWS:SPACING[:DIAMETER][:white]``, e.g. ``acircles:7x11:0.02:0.015:white``
+  (COLS circles in each row, ROWS rows; ``white``: white circles on black, else black on white).
 
 Lengths are metres. COLSxROWS of a chessboard counts INNER corners (a 9x6 board has 10x7
 squares). DICT is any ``cv2.aruco.DICT_*`` name (case-insensitive on input, written back in
@@ -45,6 +48,15 @@ z axis pointing away from it (``X_CT[:3, 2] · X_CT[:3, 3] > 0``).
   FIRST_ID; the tag in column c and row r has its top-left corner at (c, r)·SIZE·(1 + SPACING);
   corner k of tag `id` has id ``id·4 + k`` (ArUco corner order). The corner squares Kalibr adds
   between tags are not drawn (OpenCV's ArUco detector would merge them with the tags' borders).
+* circle grid: origin at the centre of the top-left circle, circle (i, j) (i-th in its row, j-th
+  row) has id j·COLS + i — the order of ``cv2.findCirclesGrid`` for pattern size (COLS, ROWS).
+  Symmetric: centre (i·SPACING, j·SPACING, 0). Asymmetric (OpenCV's layout, odd rows shifted
+  right by SPACING): centre ((2i + j mod 2)·SPACING, j·SPACING, 0) — SPACING is the distance
+  between rows and half the distance between neighbours in a row. DIAMETER defaults to half the
+  nearest centre distance (SPACING/2, resp. SPACING·√2/2). The printed pattern extends one
+  SPACING beyond the outermost centres (black for white circles). A symmetric grid, and an
+  asymmetric one with an even number of rows, looks the same after a half turn (also after a
+  quarter turn when a symmetric grid is square): ``target_symmetries``.
 
 Rendered images (``render_target``) use OpenCV's pixel convention: the centre of pixel
 (col, row) is at (col, row), so pixel (col, row) covers [col − ½, col + ½] × [row − ½, row + ½].
@@ -111,8 +123,23 @@ class AprilGridTarget:
     first_id: int = 0
 
 
-Target = ChessboardTarget | CharucoTarget | AprilTagTarget | AprilGridTarget
-TARGET_TYPES = (ChessboardTarget, CharucoTarget, AprilTagTarget, AprilGridTarget)
+@dataclasses.dataclass(frozen=True)
+class CircleGridTarget:
+    """Grid of ``cols`` circles per row × ``rows`` rows, centre pitch ``spacing`` (m; see the
+    module docstring for the asymmetric layout), circle ``diameter`` (m; None: half the nearest
+    centre distance), ``white`` circles on black (else black on white)."""
+
+    cols: int
+    rows: int
+    spacing: float
+    asymmetric: bool = False
+    diameter: float | None = None
+    white: bool = False
+
+
+Target = ChessboardTarget | CharucoTarget | AprilTagTarget | AprilGridTarget | CircleGridTarget
+TARGET_TYPES = (ChessboardTarget, CharucoTarget, AprilTagTarget, AprilGridTarget,
+                CircleGridTarget)
 
 APRILTAG_FAMILIES = ("16h5", "25h9", "36h10", "36h11")
 
@@ -125,6 +152,12 @@ SPEC_FORMS = {
                 "border edge in m), e.g. apriltag:36h11:0.048:10",
     "aprilgrid": "aprilgrid:FAMILY:TAGSXxTAGSY:SIZE:SPACING[:FIRST_ID] (SPACING = gap / SIZE), "
                  "e.g. aprilgrid:36h11:6x6:0.088:0.3",
+    "circles": "circles:COLSxROWS:SPACING[:DIAMETER][:white] (symmetric circle grid; COLS "
+               "circles per row, centre pitch and diameter in m; white: white circles on black), "
+               "e.g. circles:4x11:0.02",
+    "acircles": "acircles:COLSxROWS:SPACING[:DIAMETER][:white] (asymmetric circle grid, OpenCV's "
+                "layout: SPACING = row distance = half the pitch in a row, m), "
+                "e.g. acircles:7x11:0.02:0.015:white",
 }
 
 
@@ -307,6 +340,22 @@ def _validate(target) -> Target:
             _fail(f"{name}.first_id", f"family {target.family} has ids 0…{n - 1}; a {tx}x{ty} "
                                       f"grid from id {first} needs up to {first + tx * ty - 1}")
         target = AprilGridTarget(target.family, tx, ty, size, spacing, first)
+    elif isinstance(target, CircleGridTarget):
+        # findCirclesGrid needs at least 2 circles each way; a pose needs 4 non-collinear.
+        cols = _int_field(target.cols, f"{name}.cols", 2)
+        rows = _int_field(target.rows, f"{name}.rows", 2)
+        spacing = _length_field(target.spacing, f"{name}.spacing")
+        for flag in ("asymmetric", "white"):
+            if not isinstance(getattr(target, flag), (bool, np.bool_)):
+                _fail(f"{name}.{flag}", f"expected a bool, got {getattr(target, flag)!r}")
+        asym = bool(target.asymmetric)
+        nearest = spacing * (math.sqrt(2.0) if asym else 1.0)
+        diameter = (0.5 * nearest if target.diameter is None else
+                    _length_field(target.diameter, f"{name}.diameter"))
+        if diameter >= nearest:
+            _fail(f"{name}.diameter", f"{diameter!r} m: circles would touch (the nearest centres "
+                                      f"are {nearest:.6g} m apart)")
+        target = CircleGridTarget(cols, rows, spacing, asym, diameter, bool(target.white))
     else:
         raise ValueError(f"target: expected one of {', '.join(t.__name__ for t in TARGET_TYPES)} "
                          f"or a spec string, got {type(target).__name__}")
@@ -326,6 +375,9 @@ def _scaled(target, factor: float):
     if isinstance(target, CharucoTarget):
         return dataclasses.replace(target, square=target.square * factor,
                                    marker=target.marker * factor)
+    if isinstance(target, CircleGridTarget):
+        return dataclasses.replace(target, spacing=target.spacing * factor,
+                                   diameter=target.diameter * factor)
     return dataclasses.replace(target, size=target.size * factor)
 
 
@@ -444,7 +496,7 @@ def parse_target(spec: str) -> Target:
             if tag_id >= n:
                 bad(3, "ID", f"{tag_id} is out of range: family {fam} has ids 0…{n - 1}")
             target = AprilTagTarget(fam, size, tag_id)
-        else:
+        elif kind == "aprilgrid":
             count(5, 6)
             fam = family(1)
             tx, ty = grid(2, "TAGSXxTAGSY", 1)
@@ -456,6 +508,19 @@ def parse_target(spec: str) -> Target:
                 bad(5 if len(fields) == 6 else 2, "FIRST_ID" if len(fields) == 6 else "TAGSXxTAGSY",
                     f"needs ids up to {first + tx * ty - 1} but family {fam} has ids 0…{n - 1}")
             target = AprilGridTarget(fam, tx, ty, size, spacing, first)
+        else:
+            count(3, 5)
+            cols, rows = grid(1, "COLSxROWS", 2)
+            spacing = length(2, "SPACING")
+            white = False
+            last = len(fields) - 1
+            if last >= 3 and fields[last].strip().lower() in ("white", "black"):
+                white = fields[last].strip().lower() == "white"
+                last -= 1
+            if last > 3:
+                bad(4, "white", f"{fields[4]!r} must be 'white', 'black' or absent")
+            diameter = length(3, "DIAMETER") if last == 3 else None
+            target = CircleGridTarget(cols, rows, spacing, kind == "acircles", diameter, white)
         return _validate(target)
     except ValueError as e:
         if str(e).startswith(f"target spec {spec!r}"):
@@ -476,6 +541,12 @@ def format_target(target) -> str:
     if isinstance(target, AprilTagTarget):
         return (f"apriltag:{target.family}:{_format_length(target.size)}"
                 + (f":{target.id}" if target.id else ""))
+    if isinstance(target, CircleGridTarget):
+        kind = "acircles" if target.asymmetric else "circles"
+        default = _validate(dataclasses.replace(target, diameter=None)).diameter
+        return (f"{kind}:{target.cols}x{target.rows}:{_format_length(target.spacing)}"
+                + ("" if target.diameter == default else f":{_format_length(target.diameter)}")
+                + (":white" if target.white else ""))
     return (f"aprilgrid:{target.family}:{target.tags_x}x{target.tags_y}:"
             f"{_format_length(target.size)}:{_format_length(target.spacing)}"
             + (f":{target.first_id}" if target.first_id else ""))
@@ -547,6 +618,8 @@ def _object_points(target) -> tuple[np.ndarray, np.ndarray]:
         j, i = np.divmod(np.arange(target.cols * target.rows), target.cols)
         p = np.stack([i * target.square, j * target.square, np.zeros(i.size)], axis=1)
         return np.arange(i.size), p
+    if isinstance(target, CircleGridTarget):
+        return np.arange(target.cols * target.rows), _circle_centres(target)
     if isinstance(target, CharucoTarget):
         nx = target.squares_x - 1
         j, i = np.divmod(np.arange(nx * (target.squares_y - 1)), nx)
@@ -557,6 +630,63 @@ def _object_points(target) -> tuple[np.ndarray, np.ndarray]:
     ids = (4 * tag_ids[:, None] + np.arange(4)[None]).ravel()
     p = np.concatenate([corners.reshape(-1, 2), np.zeros((ids.size, 1))], axis=1)
     return ids, p
+
+
+def _circle_centres(target: CircleGridTarget) -> np.ndarray:
+    """(COLS·ROWS, 3) circle centres in T, in id order."""
+    j, i = np.divmod(np.arange(target.cols * target.rows), target.cols)
+    x = (2 * i + j % 2) if target.asymmetric else i
+    return np.stack([x * target.spacing, j * target.spacing, np.zeros(i.size)], axis=1)
+
+
+def circles(target) -> np.ndarray:
+    """(N, 3) [x, y, radius] (m, in T) of the circles of a circle grid, in id order (the
+    circles are white on a black ``pattern_extent`` when ``target.white``, else black)."""
+    target = validate_target(target)
+    if not isinstance(target, CircleGridTarget):
+        raise ValueError(f"target: {format_target(target)} is not a circle grid")
+    c = _circle_centres(target)
+    return np.column_stack([c[:, :2], np.full(len(c), 0.5 * target.diameter)])
+
+
+def target_symmetries(target) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The rigid motions of the plane that map the target's points onto themselves, printed
+    colours included, other than the identity: [(G, perm)] with G the 4×4 pose of the moved
+    board in T and ``perm[k]`` the id that point k lands on (``G p_k = p_perm[k]``). A detector
+    cannot tell these views apart: with labels read off by one of them, the true pose is
+    ``X_CT · G⁻¹`` and the true id of point k is ``perm[k]``. Empty for boards whose orientation
+    is printed (ChArUco, tags, chessboards with COLS + ROWS odd, asymmetric grids of odd ROWS)."""
+    target = validate_target(target)
+    if isinstance(target, ChessboardTarget):
+        turns = [] if (target.cols + target.rows) % 2 else [2]
+        # A square board with an odd square count per side keeps its colours after a quarter
+        # turn too (the corner squares are all black).
+        if target.cols == target.rows and target.cols % 2 == 0:
+            turns = [1, 2, 3]
+    elif isinstance(target, CircleGridTarget):
+        if target.asymmetric:
+            turns = [2] if target.rows % 2 == 0 else []
+        else:
+            turns = [1, 2, 3] if target.cols == target.rows else [2]
+    else:
+        turns = []
+    if not turns:
+        return []
+    ids, p = object_points(target)
+    centre = 0.5 * (p.min(axis=0) + p.max(axis=0))
+    out = []
+    for k in turns:
+        c, s = np.round(math.cos(k * math.pi / 2)), np.round(math.sin(k * math.pi / 2))
+        G = np.eye(4)
+        G[:2, :2] = [[c, -s], [s, c]]
+        G[:3, 3] = centre - G[:3, :3] @ centre
+        q = p @ G[:3, :3].T + G[:3, 3]
+        d = np.linalg.norm(q[:, None, :2] - p[None, :, :2], axis=2)
+        perm = np.argmin(d, axis=1)
+        if np.max(d[np.arange(len(q)), perm]) > 1e-9 * max(1.0, float(np.ptp(p))):
+            continue
+        out.append((G, ids[perm]))
+    return out
 
 
 def pattern_extent(target) -> tuple[float, float, float, float]:
@@ -571,6 +701,10 @@ def _extent(target) -> tuple[float, float, float, float]:
         return (-s, -s, target.cols * s, target.rows * s)
     if isinstance(target, CharucoTarget):
         return (0.0, 0.0, target.squares_x * target.square, target.squares_y * target.square)
+    if isinstance(target, CircleGridTarget):
+        s = target.spacing
+        width = 2 * (target.cols - 1) + (target.rows > 1) if target.asymmetric else target.cols - 1
+        return (-s, -s, (width + 1) * s, target.rows * s)
     if isinstance(target, AprilTagTarget):
         h = 0.5 * target.size
         return (-h, -h, h, h)
@@ -607,7 +741,11 @@ def black_rectangles(target) -> np.ndarray:
     up the printed pattern (everything else inside ``pattern_extent`` is white)."""
     target = validate_target(target)
     rects = []
-    if isinstance(target, ChessboardTarget):
+    if isinstance(target, CircleGridTarget):
+        # The circles themselves are ``circles``; a white-circle board is printed on black.
+        if target.white:
+            rects.append(pattern_extent(target))
+    elif isinstance(target, ChessboardTarget):
         s = target.square
         for j in range(target.rows + 1):
             for i in range(target.cols + 1):
@@ -648,6 +786,27 @@ def _coverage(e0: float, e1: float) -> tuple[int, np.ndarray]:
     return k0, np.clip(np.minimum(e1, k + 1) - np.maximum(e0, k), 0.0, 1.0)
 
 
+_SUB = (np.arange(4) + 0.5) / 4.0  # 4×4 sub-pixel samples
+
+
+def _add_disc(dark: np.ndarray, cx: float, cy: float, r: float, sign: float) -> None:
+    """Adds ``sign`` × the fraction of each pixel covered by the disc of centre (cx, cy) and
+    radius r (pixel-edge units: pixel k covers [k, k + 1)): 4×4 sub-samples per pixel, each
+    covered by the linear ramp of its distance to the circle over a sub-sample's width (the
+    rendered disc is symmetric about its centre, so its grey centroid is the true one)."""
+    h, w = dark.shape
+    c0, c1 = max(int(math.floor(cx - r - 1)), 0), min(int(math.ceil(cx + r + 1)), w)
+    r0, r1 = max(int(math.floor(cy - r - 1)), 0), min(int(math.ceil(cy + r + 1)), h)
+    if c0 >= c1 or r0 >= r1:
+        return
+    xs = (np.arange(c0, c1)[:, None] + _SUB[None]).ravel() - cx    # (W·4,)
+    ys = (np.arange(r0, r1)[:, None] + _SUB[None]).ravel() - cy
+    d = np.hypot(ys[:, None], xs[None, :])
+    cover = np.clip((r - d) * 4.0 + 0.5, 0.0, 1.0)
+    cover = cover.reshape(r1 - r0, 4, c1 - c0, 4).mean(axis=(1, 3))
+    dark[r0:r1, c0:c1] += sign * cover
+
+
 def render_target(target, pixels_per_metre: float,
                   margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Grey image of the pattern, exactly to scale, with a white margin around it.
@@ -685,7 +844,13 @@ def render_target(target, pixels_per_metre: float,
     for x0, y0, x1, y1 in black_rectangles(target):
         c0, cx = _coverage((x0 - left) * ppm, (x1 - left) * ppm)
         r0, cy = _coverage((y0 - top) * ppm, (y1 - top) * ppm)
+        # (An edge on the last pixel boundary can round one pixel past it: nothing to cover.)
+        cx, cy = cx[:max(width - c0, 0)], cy[:max(height - r0, 0)]
         dark[r0:r0 + cy.size, c0:c0 + cx.size] += cy[:, None] * cx[None, :]
+    if isinstance(target, CircleGridTarget):
+        sign = -1.0 if target.white else 1.0
+        for x, y, radius in circles(target):
+            _add_disc(dark, (x - left) * ppm, (y - top) * ppm, radius * ppm, sign)
     image = np.round(255.0 * (1.0 - np.clip(dark, 0.0, 1.0))).astype(np.uint8)
     A = np.array([[ppm, 0.0, -left * ppm - 0.5],
                   [0.0, ppm, -top * ppm - 0.5],
@@ -707,6 +872,10 @@ def target_caption(target) -> str:
         sizes = f"square {mm(target.square)} mm, marker {mm(target.marker)} mm"
     elif isinstance(target, AprilTagTarget):
         sizes = f"tag (black border) {mm(target.size)} mm"
+    elif isinstance(target, CircleGridTarget):
+        pitch = 2 * target.spacing if target.asymmetric else target.spacing
+        sizes = (f"circle diameter {mm(target.diameter)} mm, centres {mm(pitch)} mm apart in a "
+                 f"row" + (f", rows {mm(target.spacing)} mm apart" if target.asymmetric else ""))
     else:
         sizes = (f"tag (black border) {mm(target.size)} mm, gap "
                  f"{mm(target.size * target.spacing)} mm")
@@ -767,6 +936,12 @@ def _svg(target, margin: float, caption: str) -> str:
         lines.append(f'<rect x="{1000 * (x0 - x_min + margin):.6f}" '
                      f'y="{1000 * (y0 - y_min + margin):.6f}" width="{1000 * (x1 - x0):.6f}" '
                      f'height="{1000 * (y1 - y0):.6f}" fill="#000000"/>')
+    if isinstance(target, CircleGridTarget):
+        fill = "#ffffff" if target.white else "#000000"
+        for x, y, r in circles(target):
+            lines.append(f'<circle cx="{1000 * (x - x_min + margin):.6f}" '
+                         f'cy="{1000 * (y - y_min + margin):.6f}" r="{1000 * r:.6f}" '
+                         f'fill="{fill}" shape-rendering="geometricPrecision"/>')
     size = min(3.0, 1.6 * w_mm / max(len(caption), 1))
     lines.append(f'<text x="{w_mm / 2:.3f}" y="{h_mm - caption_mm / 2 + size / 3:.3f}" '
                  f'font-family="sans-serif" font-size="{size:.3f}" text-anchor="middle">'
@@ -792,6 +967,11 @@ def _pdf(target, margin: float, caption: str, path: Path) -> None:
              for x0, y0, x1, y1 in black_rectangles(target) - [x_min - margin, y_min - margin] * 2]
     ax.add_collection(PolyCollection(polys, facecolors="black", edgecolors="none",
                                      linewidths=0, antialiaseds=False))
+    if isinstance(target, CircleGridTarget):
+        from matplotlib.patches import Circle
+        for x, y, r in circles(target):
+            ax.add_patch(Circle((x - x_min + margin, y - y_min + margin), r, linewidth=0,
+                                facecolor="white" if target.white else "black"))
     points = min(8.5, 1.6 * w / 0.0254 * 72 / max(len(caption), 1))
     ax.text(w / 2, h - caption_m / 2, caption, ha="center", va="center", fontsize=points)
     fig.savefig(path, format="pdf")
@@ -808,6 +988,8 @@ def object_points_description(target) -> str:
         where = "origin at the top-left outer corner of the board"
     elif isinstance(target, AprilTagTarget):
         where = "origin at the tag centre"
+    elif isinstance(target, CircleGridTarget):
+        where = "origin at the centre of the top-left circle"
     else:
         where = "origin at the top-left corner of the top-left tag"
     return f"{where}; {axes} (as printed)"
@@ -844,11 +1026,13 @@ __all__ = [
     "AprilTagTarget",
     "CharucoTarget",
     "ChessboardTarget",
+    "CircleGridTarget",
     "Target",
     "apriltag_dictionary_name",
     "black_rectangles",
     "canonical_dictionary",
     "charuco_board",
+    "circles",
     "dictionary_names",
     "format_target",
     "get_dictionary",
@@ -861,6 +1045,7 @@ __all__ = [
     "render_target",
     "target_caption",
     "target_dictionary_name",
+    "target_symmetries",
     "validate_target",
     "write_printable",
 ]

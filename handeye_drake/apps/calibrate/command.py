@@ -158,7 +158,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     img = p.add_argument_group("images")
     img.add_argument("--target", metavar="SPEC",
                      help="the target: chessboard:9x6:0.0236, charuco:5x7:0.036:0.018:"
-                          "DICT_6X6_250[:legacy], apriltag:36h11:0.048[:ID], ...")
+                          "DICT_6X6_250[:legacy], apriltag:36h11:0.048[:ID], "
+                          "acircles:7x11:0.02[:DIAMETER][:white], circles:…, ... (docs/targets.md)")
     img.add_argument("--intrinsics", metavar="SPEC|FILE",
                      help="fx,fy,cx,cy[,k1,k2,p1,p2[,k3]], an OpenCV YAML/XML file or a ROS "
                           "camera_info YAML (default: a bag's CameraInfo, else calibrated from "
@@ -422,6 +423,8 @@ def _image_table(streams) -> str:
     lines = [f"images: {len(records)}" + (f"; {note}" if note else "")]
     if streams.inputs["images"].get("pairing"):
         lines.append(f"  {streams.inputs['images']['pairing']}")
+    if streams.inputs["images"].get("symmetry"):
+        lines.append(f"  {streams.inputs['images']['symmetry']['note']}")
     from_bag = records[0].message is not None
     lines.append("  " + ("stamp (s)                         message" if from_bag else
                          "image                          robot line")
