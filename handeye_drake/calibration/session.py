@@ -1,7 +1,7 @@
 """A live calibration session: add samples one by one, get the estimate, its σ, the verdict so
 far and the next pose to visit after each; stop when σ reaches the user's target with verdict OK.
 
-    session = CalibrationSession(target_sigma_deg=0.1, target_sigma_mm=0.5, next_pose=planner)
+    session = CalibrationSession(target_sigma_deg=0.1, target_sigma_mm=1.0, next_pose=planner)
     step = session.add(X_BE, X_CT)          # or session.add(X_BE, image=img, target=..., intrinsics=K)
     print(step.line()); if step.stop: result = session.result
 
@@ -210,7 +210,7 @@ class CalibrationSession:
     stops; when the data fit both readings alike the session needs ``roles_evidence``.
     """
 
-    def __init__(self, target_sigma_deg: float = 0.1, target_sigma_mm: float = 0.5,
+    def __init__(self, target_sigma_deg: float = 0.1, target_sigma_mm: float = 1.0,
                  options: CalibrationOptions | None = None, next_pose=None,
                  camera_sigma_deg: float = 0.1, camera_sigma_mm: float = 1.0,
                  batch_every: int = 5, max_samples: int | None = None,
@@ -390,8 +390,7 @@ class CalibrationSession:
         - the robot reached the poses the session asked for (most samples' X_BE within
           ``ASKED_DEG`` / ``ASKED_M`` of a suggested pose);
         - the batch's hand-eye transform agrees with the rough one given (``hand_eye_guess``,
-          within ``GUESS_DEG`` / ``GUESS_M``) while the swapped reading's hand-eye distance
-          does not (off by more than ``GUESS_M``)."""
+          within ``GUESS_DEG`` / ``GUESS_M``) while the swapped reading's does not."""
         n = len(self.X_BE)
         if self.suggested and n:
             asked = sum(any(np.linalg.norm(S[:3, 3] - X[:3, 3]) <= ASKED_M and
@@ -402,15 +401,17 @@ class CalibrationSession:
                         "samples)")
         result = result or self.result
         if self.hand_eye_guess is not None and result is not None:
-            G, X = self.hand_eye_guess, result.X_hand
-            swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
-            d_guess = float(np.linalg.norm(G[:3, 3]))
-            if (np.linalg.norm(G[:3, 3] - X[:3, 3]) <= GUESS_M
-                    and rotation_angle(G[:3, :3].T @ X[:3, :3]) <= math.radians(GUESS_DEG)
-                    and (swapped is None or not np.isfinite(swapped.hand_eye_distance)
-                         or abs(swapped.hand_eye_distance - d_guess) > GUESS_M)):
+            # The swapped reading's hand-eye transform: eye-in-hand X_TB (X_CT X_TB X_BE =
+            # X_CE), eye-to-hand X_CB (X_CT X_TE = X_CB X_BE).
+            X_swap = inverse(result.X_fixed if self.mode == "eye_in_hand" else result.X_hand)
+            if self._near_guess(result.X_hand) and not self._near_guess(X_swap):
                 return "the hand-eye transform agrees with the rough one given"
         return ""
+
+    def _near_guess(self, X) -> bool:
+        G = self.hand_eye_guess
+        return bool(np.linalg.norm(G[:3, 3] - X[:3, 3]) <= GUESS_M
+                    and rotation_angle(G[:3, :3].T @ X[:3, :3]) <= math.radians(GUESS_DEG))
 
     def _settle_roles(self, result) -> None:
         """A swap the data cannot decide is decided by ``roles_evidence`` (then the verdict is
