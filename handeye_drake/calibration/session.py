@@ -367,8 +367,21 @@ class CalibrationSession:
         options = self.options
         if times is None and options.time_offset_s is None:
             options = dataclasses.replace(options, time_offset_s=0.0)
+        tries = [options]
+        if times is not None and options.time_offset_s is None and robot is not \
+                self.robot_stream:
+            # Stamped pairs: the driver paired them, maybe across a clock offset (a moving
+            # robot): the offset is estimated, as ``calibrate --time-offset auto`` (robot
+            # poses interpolated between the samples); unobservable (still poses): none.
+            tries.insert(0, dataclasses.replace(options, time_offset_s="auto"))
         try:
-            result = solve(streams, options)
+            for k, o in enumerate(tries):
+                try:
+                    result = solve(streams, o)
+                    break
+                except ValueError:
+                    if k + 1 == len(tries):
+                        raise
         except ValueError as e:
             self._batch_error = " ".join(str(e).split())
             self._batch_n = n
