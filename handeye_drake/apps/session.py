@@ -1,6 +1,7 @@
 """``handeye-drake session``: a live calibration that says what to record next and when to stop.
 
-    handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,0.5
+    handeye-drake session --simulate --out out/session      (no hardware: docs/session.md)
+    handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,1.0
     handeye-drake session --bag BAG [--follow] --robot-frames base_link:tool0
                           (--camera-topic TOPIC | --camera-frames CAM:TARGET | --image-topic TOPIC)
                           [--candidates FILE | --feasible] [--hand-eye POSE --target POSE]
@@ -14,18 +15,27 @@ A thin command around ``calibration.session.CalibrationSession``. Each input lin
   PATH`` instead of X_CT (``--target-spec`` and ``--intrinsics`` then needed).
 
 ``#`` starts a comment. ``--follow`` keeps reading a growing file (a driver appending to it) until
-stop or ``--idle-timeout`` (``--timeout-s``) seconds without a new line.
+stop or ``--idle-timeout`` (``--timeout-s``) seconds without a new line; a last line without its
+newline waits for it, and the lines available at a poll are fitted once together.
+``--simulate``: a simulated UR5e with a rendered camera (``apps.session_simulate``) executes
+each suggested pose and appends its line to ``--out``/samples.txt, read by the same reader.
+
+The lines are checked as ``calibrate`` checks pose files (swapped or inverted streams,
+quaternion order, units, clock offset): which column is the robot's is told by the poses the
+session asked for or by ``--hand-eye`` (the rough mount); without either a swap is a tie and the
+session does not stop. ``--target-sigma`` must be above the floor ``--robot-accuracy`` puts
+under σ (printed at the start; at or below it: exit 2).
 
 ``--bag``: the samples of a ROS bag (``recorded.bag_follow.BagFollower``): each camera message
-(a pose topic, a tf pair, or an image with ``--target-spec`` and ``--intrinsics``) with the
-robot pose from tf interpolated at its stamp. With ``--follow`` the bag is polled every
-``--poll-s`` while the recorder writes it (ROS 2 sqlite3 or MCAP storage; a ROS 1 bag once it is
-closed), each new sample added as it arrives, until stop or ``--idle-timeout`` seconds without
-one. The samples are paired at the camera stamps, so the batch takes the clocks as synchronized
-(time offset 0). After each sample one line: σ (deg, mm;
-tool and 0.5 m in front, mm), the verdict so far, the next pose (with ``--candidates``: the
-D-optimal best of those poses; with ``--feasible``: a reachable, collision-free pose from Drake's
-IK for the shipped UR5e or ``--urdf``). At stop, ``calibration.json`` is written into ``--out``.
+(a pose topic, a tf pair, or an image with ``--target-spec``; intrinsics from ``--intrinsics`` or
+the bag's CameraInfo) with the robot pose from tf interpolated at its stamp; the batch takes the
+whole tf stream and estimates the clock offset as ``calibrate`` does. With ``--follow`` the bag
+is polled every ``--poll-s`` while the recorder writes it (ROS 2 sqlite3 or MCAP storage; a ROS 1
+bag once it is closed), until stop or ``--idle-timeout`` seconds without a new sample. After
+each fit one line: σ (deg, mm; tool and 0.5 m in front, mm), the verdict so far, the next pose
+(with ``--candidates``: the D-optimal best of those poses; with ``--feasible``: a reachable,
+collision-free pose from Drake's IK for the shipped UR5e or ``--urdf``). At stop,
+``calibration.json`` is written into ``--out``. ``--state`` must be new or a session state.
 
 Exit status: 0 stop (σ at the target, verdict OK); 1 the input ended before that; 2 bad input.
 """
@@ -250,20 +260,22 @@ def _check_state(args, out) -> None:
                          "or --force)")
 
 
-def _floor_check(sigma, options, X_H) -> str:
-    """ValueError when --target-sigma is below the σ floor of --robot-accuracy; else the line
-    that says what the floor is."""
-    floor = sigma_floor(options.robot_accuracy, X_H)
-    acc = f"{options.robot_accuracy_deg:g},{options.robot_accuracy_mm:g}"
-    for k, unit in ((0, "°"), (1, " mm")):
-        if sigma[k] <= floor[k]:
-            raise ValueError(
-                f"--target-sigma: {sigma[k]:g}{unit} is below the floor {floor[k]:.3g}{unit} that "
-                f"--robot-accuracy {acc} (deg,mm per axis, constant over the recording) puts "
-                f"under σ; no number of samples reaches it: ask for more than "
-                f"{floor[k]:.3g}{unit}, or give the robot's measured accuracy")
-    return (f"σ floor of --robot-accuracy {acc}: {floor[0]:.3g}° / {floor[1]:.3g} mm (the "
-            f"target {sigma[0]:g}° / {sigma[1]:g} mm is above it)")
+def floor_line(sigma, acc, X_H=None) -> str:
+    """The σ floor of --robot-accuracy ``acc`` (deg, mm per axis) as one line; ValueError
+    naming --target-sigma when ``sigma`` (deg, mm; None: no target) is at or below it."""
+    floor = sigma_floor(None if not any(acc) else (float(acc[0]), float(acc[1]) / 1000.0), X_H)
+    text = f"{acc[0]:g},{acc[1]:g}"
+    if sigma is not None:
+        for k, unit in ((0, "°"), (1, " mm")):
+            if sigma[k] <= floor[k]:
+                raise ValueError(
+                    f"--target-sigma: {sigma[k]:g}{unit} is below the floor {floor[k]:.3g}{unit} "
+                    f"that --robot-accuracy {text} (deg,mm per axis, constant over the "
+                    f"recording) puts under σ; no number of samples reaches it: ask for more "
+                    f"than {floor[k]:.3g}{unit}, or give the robot's measured accuracy")
+    return (f"σ floor of --robot-accuracy {text}: {floor[0]:.3g}° / {floor[1]:.3g} mm"
+            + ("" if sigma is None else
+               f" (the target {sigma[0]:g}° / {sigma[1]:g} mm is above it)"))
 
 
 def run_session(args) -> int:
@@ -323,7 +335,7 @@ def run_session(args) -> int:
     else:
         options = CalibrationOptions(mode=mode, robot_accuracy_deg=float(acc[0]),
                                      robot_accuracy_mm=float(acc[1]))
-        print(_floor_check(sigma, options, X_guess))
+        print(floor_line(sigma, acc, X_guess))
         session = CalibrationSession(float(sigma[0]), float(sigma[1]), options, next_pose,
                                      max_samples=args.max_samples, hand_eye_guess=X_guess)
     pending = {"pose": session.ask_pose(), "used": False}

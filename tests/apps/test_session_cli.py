@@ -135,3 +135,13 @@ def test_session_on_the_example_bag_agrees_with_calibrate(example_bag, tmp_path,
     st = np.sqrt(np.trace(ref.covariance[3:, 3:]))
     assert np.degrees(rotation_angle(X[:3, :3].T @ ref.X_hand[:3, :3])) <= sr
     assert np.linalg.norm(X[:3, 3] - ref.X_hand[:3, 3]) <= st
+
+
+def test_plan_says_the_floor_and_refuses_a_target_below_it(tmp_path, capsys):
+    args = ["plan", "--hand-eye=0.035,-0.025,0.055,0,0,0.7071068,0.7071068",
+            "--target=-0.45,-0.15,0", "--around=-0.3,-0.2,0.5,1,0,0,0", "--num-candidates", "50"]
+    assert main(args + ["--target-sigma", "0.1,0.5", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "--target-sigma: 0.5 mm is below the floor 0.522 mm" in err and err.count("\n") == 1
+    assert main(args + ["--out", str(tmp_path / "b")]) == 0
+    assert "σ floor of --robot-accuracy 0.03,0.3: 0.052° / 0.522 mm" in capsys.readouterr().out
