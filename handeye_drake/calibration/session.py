@@ -607,7 +607,10 @@ def is_session_state(path) -> bool:
         d = json.loads(p.read_text())
     except (OSError, UnicodeDecodeError, ValueError):
         return False
-    return isinstance(d, dict) and d.get("format") == STATE_FORMAT
+    # (States written before the "format" field: version 1 with the session's own keys.)
+    return isinstance(d, dict) and (d.get("format") == STATE_FORMAT or (
+        "format" not in d and d.get("version") == 1 and {"target_sigma_deg", "options",
+                                                          "samples"} <= d.keys()))
 
 
 __all__ = ["CalibrationSession", "CandidatePoses", "MIN_BATCH_SAMPLES", "SessionStep",
