@@ -7,9 +7,11 @@ flange at a true mount ``X_EC`` that the session does not know (it gets the roug
 squares of 25 mm lying face up on the table at ``X_BT``. The camera renders
 (``systems.rendered_cell.RenderedHandCell``: RenderVtk, 640 × 480, 2× supersampled) and the
 project's detector measures X_CT from each image (corners, IPPE/solvePnP). The robot reports its
-flange pose X_BE with a constant error (a calibration-less arm: drawn once per seed from the
-robot's accuracy, ``robot_accuracy`` per axis — absorbed by the hand-eye transform, so it is
-what the session's σ floor is for) and a per-sample jitter (``robot_noise``).
+flange pose X_BE through a perturbed kinematic model (joint zero offsets, ``joint_offset_deg``
+per joint, drawn once: errors that repeat with the joint angles), with a constant error (a
+calibration-less arm: drawn once per seed from ``robot_accuracy`` per axis — absorbed by the
+hand-eye transform, so it is what the session's σ floor is for) and a per-sample jitter
+(``robot_noise``).
 
 ``SimulatedDriver.execute(pose)`` does what a real driver does for the session: moves the arm
 along the suggested path to the suggested joint angles, takes one frame, and appends one sample
@@ -56,6 +58,7 @@ class SimulatedCell:
         _rpy(2, -2, 91), [0.035, -0.025, 0.055]))
     robot_accuracy: tuple = (0.03, 0.3)        # deg, mm per axis: the constant flange error
     robot_noise: tuple = (0.01, 0.05)          # deg, mm per axis: per-sample jitter
+    joint_offset_deg: float = 0.005            # per joint: the reports' kinematic model error
 
     @property
     def board_points(self) -> np.ndarray:
@@ -100,6 +103,7 @@ class SimulatedDriver:
         self.cell = cell
         self.rng = np.random.default_rng(seed)
         self.robot_error = _perturbed(np.eye(4), *cell.robot_accuracy, self.rng)
+        self.joint_offsets = None
         self.render = RenderedHandCell(cell.target_spec, cell.intrinsics, cell.X_EC, cell.X_BT,
                                        supersample=supersample)
         self.path.write_text("")
@@ -110,13 +114,19 @@ class SimulatedDriver:
         return self.render.frames
 
     def execute(self, pose) -> bool:
-        for q in pose.get("path", [pose["q"]])[:-1]:
-            self.render.set_q(q)                   # move through, no frame
-        shot = self.render.observe(pose["q"])
+        q = np.asarray(pose["q"], float)
+        if self.joint_offsets is None:
+            self.joint_offsets = self.rng.normal(0, math.radians(self.cell.joint_offset_deg),
+                                                 len(q))
+        # What the controller reports: its kinematic model at its encoders' angles.
+        X_BE_model = self.render.X_BE(q + self.joint_offsets)
+        for q_via in pose.get("path", [q])[:-1]:
+            self.render.set_q(q_via)               # move through, no frame
+        shot = self.render.observe(q)
         if not shot.found:
             self.lost += 1
             return False
-        X_BE = _perturbed(shot.X_BE @ self.robot_error, *self.cell.robot_noise, self.rng)
+        X_BE = _perturbed(X_BE_model @ self.robot_error, *self.cell.robot_noise, self.rng)
         with self.path.open("a") as fh:
             fh.write(sample_line(X_BE, shot.X_CT) + "\n")
         return True
