@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
 
-.PHONY: setup system-deps run test diagrams clean
+.PHONY: setup system-deps run test diagrams docs docs-check docs-check-full docs-regenerate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,24 @@ diagrams: setup
 
 test: setup
 	$(BIN)/python -m pytest
+
+# The documentation (tools/docs_check.py, docs/writing-docs.md). `docs` builds the site from
+# docs/ into out/site (--strict: a broken link or anchor fails). `docs-check` runs every
+# documented command with its printed output that is cheap (also run by `make test`, through
+# tests/test_docs.py) and compares; `docs-check-full` runs the long ones too (benchmarks,
+# reproduce all: minutes; not in CI). `docs-regenerate` rewrites the sections generated from
+# committed benchmark results (benchmarks/results/*.json).
+docs: setup
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict
+
+docs-check: setup
+	$(BIN)/python tools/docs_check.py
+
+docs-check-full: setup
+	$(BIN)/python tools/docs_check.py --full
+
+docs-regenerate: setup
+	$(BIN)/python tools/docs_check.py --regenerate
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
