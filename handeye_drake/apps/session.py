@@ -423,7 +423,10 @@ def run_session(args) -> int:
         name = "X_EC" if mode == "eye_in_hand" else "X_BC"
         print(f"calibrated after {len(session.X_BE)} samples: {name} "
               f"{','.join(f'{x:.5f}' for x in X[:3, 3])},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f},"
-              f"{q[0]:.6f}; verdict {session.result.verdict.status}")
+              f"{q[0]:.6f}; verdict {session.result.verdict.status}"
+              + ("" if session.result.time_offset is None else
+                 f"; clock offset {session.result.aligned.time_offset:+.5f} s (camera stamp − "
+                 "robot time, estimated)"))
         if driver is not None:
             X_true = driver.cell.X_EC
             rot = np.degrees(rotation_angle(X[:3, :3].T @ X_true[:3, :3]))
