@@ -68,24 +68,19 @@ from handeye_drake.calibration.session import CalibrationSession
 from handeye_drake.estimation.se3 import inverse, make_transform, rotation_angle, rotation_exp
 from handeye_drake.planning import FeasiblePlanner, ViewSpec, as_session_planner
 from handeye_drake.planning.feasible import UR5E_HOME_Q, _look_rotation
-from handeye_drake.vision.camera_model import CameraIntrinsics
+from handeye_drake.apps.session_simulate import SimulatedCell
 
-K = CameraIntrinsics(alpha_u=800, alpha_v=800, u0=320, v0=240, width=640, height=480)
-BOARD = np.array([[x, y, 0.0] for x in (0, 0.2) for y in (0, 0.15)])
-X_BT = make_transform(rotation_exp(np.array([math.pi, 0.0, 0.0])), [-0.45, -0.15, 0.0])
-
-
-def rpy(r, p, y):
-    from pydrake.math import RollPitchYaw
-    return RollPitchYaw(np.radians([r, p, y])).ToRotationMatrix().matrix()
-
-
-X_EC_TRUE = make_transform(rpy(4, -3, 92), [0.04, -0.03, 0.06])
-X_EC_GUESS = make_transform(rpy(2, -2, 91), [0.035, -0.025, 0.055])
+# The cell of ``handeye-drake session --simulate`` (``apps.session_simulate``).
+CELL = SimulatedCell()
+K = CELL.intrinsics
+BOARD = CELL.board_points
+X_BT = CELL.X_BT
+X_EC_TRUE = CELL.X_EC
+X_EC_GUESS = CELL.X_EC_guess
 CAMERA_NOISE = (0.05, 0.3)     # deg, mm per axis
 ROBOT_NOISE = (0.02, 0.1)
 #: The rendered board: a ChArUco of 8 × 6 squares of 25 mm (0.2 × 0.15 m, 35 inner corners).
-TARGET_SPEC = "charuco:8x6:0.025:0.019:DICT_5X5_100"
+TARGET_SPEC = CELL.target_spec
 
 
 def noisy(X, deg, mm, rng):
@@ -128,8 +123,11 @@ def run(method, seed, world, planner, pool, pattern, args, cell=None):
                                  robot_accuracy_mm=ROBOT_NOISE[1], seed=seed)
     next_pose = as_session_planner(planner, pool, replan_after=args.replan_after) \
         if method == "session" else None
+    # The rough mount tells the robot's poses from the camera's (``roles_evidence``), as
+    # ``session --hand-eye`` does.
     session = CalibrationSession(args.sigma[0], args.sigma[1], options, next_pose=next_pose,
-                                 camera_sigma_deg=0.1, camera_sigma_mm=1.0)
+                                 camera_sigma_deg=0.1, camera_sigma_mm=1.0,
+                                 hand_eye_guess=X_EC_GUESS)
     if method == "random":
         order = iter([pool.q[i] for i in rng.permutation(len(pool))])
     elif method == "half-sphere":

@@ -77,9 +77,11 @@ def joint_plan(plant: MultibodyPlant):
     return q, phase, times[-1]
 
 
-def build(with_phase: bool = True, X_EC_guess=None):
+def build(with_phase: bool = True, X_EC_guess=None, told_noise=NOISE):
     """The diagram. ``with_phase`` False: no self-calibration motions (M = 0), the calibrator
-    starts from ``X_EC_guess``."""
+    starts from ``X_EC_guess``. ``told_noise``: the camera noise (rad, m) the calibrator is
+    told — the camera's own (``NOISE``) unless you do not know it; a σ that understates it is
+    corrected on-line from the measurements (the reported ``X_EC_std`` is scaled)."""
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.002)
     (arm,) = Parser(plant).AddModels(UR5E_URDF)
@@ -110,17 +112,18 @@ def build(with_phase: bool = True, X_EC_guess=None):
     phase_port = builder.AddNamedSystem("phase", TrajectorySource(phase)).get_output_port() \
         if with_phase else None
     calibrator = add_hand_eye_calibrator(
-        builder, estimator=TargetFilter(rotation_sigma=NOISE[0], translation_sigma=NOISE[1]),
+        builder, estimator=TargetFilter(rotation_sigma=told_noise[0],
+                                        translation_sigma=told_noise[1]),
         period=PERIOD, X_EC_initial_guess=np.eye(4) if X_EC_guess is None else X_EC_guess,
         X_BE=flange.get_X_BE_output_port(), X_CT=camera.get_output_port(), phase=phase_port)
     diagram = builder.Build()
     return diagram, plant, arm, calibrator, q, duration
 
 
-def run(seed: int = 0, with_phase: bool = True, X_EC_guess=None):
+def run(seed: int = 0, with_phase: bool = True, X_EC_guess=None, told_noise=NOISE):
     """Simulates the example; returns (X_EC estimate, its 6 standard deviations (deg, m),
     status vector)."""
-    diagram, plant, arm, calibrator, q, duration = build(with_phase, X_EC_guess)
+    diagram, plant, arm, calibrator, q, duration = build(with_phase, X_EC_guess, told_noise)
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     plant.SetPositions(plant.GetMyMutableContextFromRoot(context), arm, q.value(0.0).ravel())

@@ -115,7 +115,20 @@ def run_plan(args) -> int:
     mode = args.mode.replace("-", "_")
     H = HOLDER_FRAME[mode]
     fixed = parse_fixed(args.fix) if args.fix else {}
+    # What the robot's accuracy leaves of any σ target (the session refuses one below it).
+    from .session import floor_line
+    acc = _numbers(args.robot_accuracy, "--robot-accuracy", (2,))
+    if not np.all(acc >= 0):
+        raise ValueError(f"--robot-accuracy: expected DEG,MM ≥ 0, got {args.robot_accuracy!r}")
+    target = None
+    if args.target_sigma is not None:
+        target = _numbers(args.target_sigma, "--target-sigma", (2,))
+        if not np.all(target > 0):
+            raise ValueError(f"--target-sigma: expected DEG,MM > 0, got {args.target_sigma!r}")
+    X_guess = parse_pose(args.hand_eye, "--hand-eye") if args.hand_eye else None
+    floor = floor_line(target, acc, X_guess)
     out = prepare_output_dir(args.out, "plan", args.force)
+    print(floor)
     if args.n < 1:
         raise ValueError(f"--n: must be ≥ 1, got {args.n}")
     if args.num_candidates is not None and args.num_candidates < 1:
@@ -291,6 +304,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="eye-in-hand (camera on the flange, default) or eye-to-hand, as for "
                         "calibrate")
     p.add_argument("--n", type=int, default=5, help="number of poses to suggest (default 5)")
+    p.add_argument("--robot-accuracy", default="0.03,0.3", metavar="DEG,MM",
+                   help="the robot's pose accuracy per axis (default 0.03,0.3, as calibrate and "
+                        "session): the floor it puts under σ is printed")
+    p.add_argument("--target-sigma", default=None, metavar="DEG,MM",
+                   help="the σ the session will be asked for: refused when below that floor")
     p.add_argument("--out", default="out/plan", metavar="DIR",
                    help="output directory (default out/plan); an existing one must be empty or "
                         "hold this command's earlier output")

@@ -1,6 +1,7 @@
 """``handeye-drake session``: a live calibration that says what to record next and when to stop.
 
-    handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,0.5
+    handeye-drake session --simulate --out out/session      (no hardware: docs/session.md)
+    handeye-drake session --samples FILE|- [--follow] --target-sigma 0.1,1.0
     handeye-drake session --bag BAG [--follow] --robot-frames base_link:tool0
                           (--camera-topic TOPIC | --camera-frames CAM:TARGET | --image-topic TOPIC)
                           [--candidates FILE | --feasible] [--hand-eye POSE --target POSE]
@@ -14,18 +15,27 @@ A thin command around ``calibration.session.CalibrationSession``. Each input lin
   PATH`` instead of X_CT (``--target-spec`` and ``--intrinsics`` then needed).
 
 ``#`` starts a comment. ``--follow`` keeps reading a growing file (a driver appending to it) until
-stop or ``--idle-timeout`` (``--timeout-s``) seconds without a new line.
+stop or ``--idle-timeout`` (``--timeout-s``) seconds without a new line; a last line without its
+newline waits for it, and the lines available at a poll are fitted once together.
+``--simulate``: a simulated UR5e with a rendered camera (``apps.session_simulate``) executes
+each suggested pose and appends its line to ``--out``/samples.txt, read by the same reader.
+
+The lines are checked as ``calibrate`` checks pose files (swapped or inverted streams,
+quaternion order, units, clock offset): which column is the robot's is told by the poses the
+session asked for or by ``--hand-eye`` (the rough mount); without either a swap is a tie and the
+session does not stop. ``--target-sigma`` must be above the floor ``--robot-accuracy`` puts
+under σ (printed at the start; at or below it: exit 2).
 
 ``--bag``: the samples of a ROS bag (``recorded.bag_follow.BagFollower``): each camera message
-(a pose topic, a tf pair, or an image with ``--target-spec`` and ``--intrinsics``) with the
-robot pose from tf interpolated at its stamp. With ``--follow`` the bag is polled every
-``--poll-s`` while the recorder writes it (ROS 2 sqlite3 or MCAP storage; a ROS 1 bag once it is
-closed), each new sample added as it arrives, until stop or ``--idle-timeout`` seconds without
-one. The samples are paired at the camera stamps, so the batch takes the clocks as synchronized
-(time offset 0). After each sample one line: σ (deg, mm;
-tool and 0.5 m in front, mm), the verdict so far, the next pose (with ``--candidates``: the
-D-optimal best of those poses; with ``--feasible``: a reachable, collision-free pose from Drake's
-IK for the shipped UR5e or ``--urdf``). At stop, ``calibration.json`` is written into ``--out``.
+(a pose topic, a tf pair, or an image with ``--target-spec``; intrinsics from ``--intrinsics`` or
+the bag's CameraInfo) with the robot pose from tf interpolated at its stamp; the batch takes the
+whole tf stream and estimates the clock offset as ``calibrate`` does. With ``--follow`` the bag
+is polled every ``--poll-s`` while the recorder writes it (ROS 2 sqlite3 or MCAP storage; a ROS 1
+bag once it is closed), until stop or ``--idle-timeout`` seconds without a new sample. After
+each fit one line: σ (deg, mm; tool and 0.5 m in front, mm), the verdict so far, the next pose
+(with ``--candidates``: the D-optimal best of those poses; with ``--feasible``: a reachable,
+collision-free pose from Drake's IK for the shipped UR5e or ``--urdf``). At stop,
+``calibration.json`` is written into ``--out``. ``--state`` must be new or a session state.
 
 Exit status: 0 stop (σ at the target, verdict OK); 1 the input ended before that; 2 bad input.
 """
@@ -41,8 +51,9 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.api import CalibrationOptions
-from ..calibration.session import CalibrationSession, CandidatePoses
-from ..estimation.se3 import quat_wxyz
+from ..calibration.session import (CalibrationSession, CandidatePoses, is_session_state,
+                                   sigma_floor)
+from ..estimation.se3 import quat_wxyz, rotation_angle
 from ..recorded.formats import read_poses
 from .outputs import prepare_output_dir
 from .pose_args import _numbers, parse_intrinsics, parse_pose
@@ -82,55 +93,99 @@ def parse_sample(line: str, where: str) -> dict | None:
             "stamp": stamp}
 
 
-def _lines(args):
-    """(line, where) from --samples, following a growing file with --follow."""
+class LineReader:
+    """Complete lines of a (growing) sample file: ``read()`` returns every line complete now,
+    as (line, where); a last line without its newline waits for the next read (a driver may
+    be writing it) unless ``final``."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.fh = path.open()
+        self.k = 0
+        self.buf = ""
+
+    def read(self, final: bool = False) -> list:
+        out = []
+        while True:
+            chunk = self.fh.readline()
+            if not chunk:
+                break
+            self.buf += chunk
+            if self.buf.endswith("\n"):
+                self.k += 1
+                out.append((self.buf, f"{self.path.name} line {self.k}"))
+                self.buf = ""
+        if final and self.buf:
+            self.k += 1
+            out.append((self.buf, f"{self.path.name} line {self.k}"))
+            self.buf = ""
+        return out
+
+    def close(self):
+        self.fh.close()
+
+
+def _line_batches(args, driver=None, pending=None):
+    """Lists of (line, where) from --samples: with --follow, every complete line available at
+    each poll (the session fits once per list: samples arriving faster than a fit are
+    batched), until --idle-timeout; without, one line at a time. ``driver`` (``--simulate``)
+    is asked to execute ``pending()`` (the session's next pose) before each read."""
     if args.samples == "-":
         for k, line in enumerate(sys.stdin, start=1):
-            yield line, f"stdin line {k}"
+            yield [(line, f"stdin line {k}")]
         return
     path = Path(args.samples)
     if not path.is_file():
         raise ValueError(f"--samples: file not found: {args.samples!r}")
-    with path.open() as fh:
-        k, idle = 0, time.monotonic()
-        buf = ""
+    reader = LineReader(path)
+    try:
+        if not args.follow:
+            for item in reader.read(final=True):
+                yield [item]
+            return
+        idle = time.monotonic()
         while True:
-            chunk = fh.readline()
-            if chunk:
-                buf += chunk
-                if not buf.endswith("\n") and args.follow:
-                    continue        # a line being written: wait for its end
-                k += 1
-                yield buf, f"{path.name} line {k}"
-                buf, idle = "", time.monotonic()
+            if driver is not None:
+                pose = pending()
+                if pose is None:
+                    return                  # the planner has no pose left
+                driver.execute(pose)
+            lines = reader.read()
+            if lines:
+                idle = time.monotonic()
+                yield lines
                 continue
-            if buf:
-                k += 1
-                yield buf, f"{path.name} line {k}"
-                buf = ""
-            if not args.follow or time.monotonic() - idle > args.idle_timeout:
+            if driver is None and time.monotonic() - idle > args.idle_timeout:
+                rest = reader.read(final=True)
+                if rest:
+                    yield rest
                 return
-            time.sleep(0.1)
+            if driver is None:
+                time.sleep(0.1)
+    finally:
+        reader.close()
 
 
-def _bag_samples(args):
-    """(sample, where) from --bag, polling a growing bag with --follow."""
+def _bag_samples(args, on_poll):
+    """Lists of (sample, where) from --bag, polling a growing bag with --follow;
+    ``on_poll(follower)`` after each poll (the robot's whole stream, the CameraInfo)."""
     from ..recorded.bag_follow import BagFollower
     if args.poll_s <= 0:
         raise ValueError(f"--poll-s: must be > 0, got {args.poll_s}")
     follower = BagFollower(args.bag, args.robot_frames, camera_topic=args.camera_topic,
                            camera_frames=args.camera_frames, image_topic=args.image_topic,
-                           camera_invert=args.camera_invert)
+                           camera_invert=args.camera_invert,
+                           camera_info_topic=args.camera_info_topic)
     idle = time.monotonic()
     reported = 0
     while True:
         new = follower.poll()
+        on_poll(follower)
         for where, why in follower.dropped[reported:]:
             print(f"{where}: no sample ({why})", file=sys.stderr)
         reported = len(follower.dropped)
-        for sample in new:
-            yield sample, sample["where"]
         if new:
+            yield [(sample, sample["where"]) for sample in new]
             idle = time.monotonic()
         if not args.follow:
             if follower.last_error and not new and reported == 0:
@@ -185,6 +240,44 @@ def _planner(args, mode):
     return as_session_planner(planner, cands)
 
 
+def _check_state(args, out) -> None:
+    """--state FILE may only be a session state this tool wrote (or new): never the samples
+    being read, a directory, or another file (unless --force)."""
+    if not args.state:
+        return
+    p = Path(args.state)
+    if p.is_dir():
+        raise ValueError(f"--state {args.state}: is a directory; give a file name")
+    if args.samples not in (None, "-") and p.exists() and p.resolve() == Path(
+            args.samples).resolve():
+        raise ValueError(f"--state {args.state}: is the --samples file; the state would "
+                         "overwrite the recording — give another file")
+    if args.resume or not p.exists() or args.force:
+        return
+    if not is_session_state(p):
+        raise ValueError(f"--state {args.state}: exists and is not a session state written by "
+                         "this tool; not overwriting it (give a new file, --resume a session, "
+                         "or --force)")
+
+
+def floor_line(sigma, acc, X_H=None) -> str:
+    """The σ floor of --robot-accuracy ``acc`` (deg, mm per axis) as one line; ValueError
+    naming --target-sigma when ``sigma`` (deg, mm; None: no target) is at or below it."""
+    floor = sigma_floor(None if not any(acc) else (float(acc[0]), float(acc[1]) / 1000.0), X_H)
+    text = f"{acc[0]:g},{acc[1]:g}"
+    if sigma is not None:
+        for k, unit in ((0, "°"), (1, " mm")):
+            if sigma[k] <= floor[k]:
+                raise ValueError(
+                    f"--target-sigma: {sigma[k]:g}{unit} is below the floor {floor[k]:.3g}{unit} "
+                    f"that --robot-accuracy {text} (deg,mm per axis, constant over the "
+                    f"recording) puts under σ; no number of samples reaches it: ask for more "
+                    f"than {floor[k]:.3g}{unit}, or give the robot's measured accuracy")
+    return (f"σ floor of --robot-accuracy {text}: {floor[0]:.3g}° / {floor[1]:.3g} mm"
+            + ("" if sigma is None else
+               f" (the target {sigma[0]:g}° / {sigma[1]:g} mm is above it)"))
+
+
 def run_session(args) -> int:
     mode = args.mode.replace("-", "_")
     sigma = _numbers(args.target_sigma, "--target-sigma", (2,))
@@ -195,8 +288,9 @@ def run_session(args) -> int:
         raise ValueError(f"--robot-accuracy: expected DEG,MM ≥ 0, got {args.robot_accuracy!r}")
     if args.resume and not args.state:
         raise ValueError("--resume: needs --state FILE")
-    if (args.samples is None) == (args.bag is None):
-        raise ValueError("--samples / --bag: give one source of samples")
+    if sum(x is not None and x is not False for x in (args.samples, args.bag,
+                                                       args.simulate)) != 1:
+        raise ValueError("--samples / --bag / --simulate: give one source of samples")
     if args.bag is None and (args.camera_topic or args.camera_frames or args.image_topic):
         raise ValueError("--camera-topic / --camera-frames / --image-topic: only with --bag")
     if args.bag is not None and sum(x is not None for x in (
@@ -205,8 +299,32 @@ def run_session(args) -> int:
                          "--image-topic")
     if args.idle_timeout <= 0:
         raise ValueError(f"--idle-timeout: must be > 0, got {args.idle_timeout}")
+    if args.simulate and (args.candidates or args.feasible or args.resume):
+        raise ValueError("--simulate: plans its own poses on the simulated cell; drop "
+                         "--candidates / --feasible / --resume")
+    if args.max_samples is not None and args.max_samples < 1:
+        raise ValueError(f"--max-samples: must be ≥ 1, got {args.max_samples}")
     out = prepare_output_dir(args.out, "session", args.force)
-    next_pose = _planner(args, mode)
+    _check_state(args, out)
+    driver = None
+    X_guess = parse_pose(args.hand_eye, "--hand-eye") if args.hand_eye else None
+    if args.simulate:
+        from .session_simulate import SimulatedCell, SimulatedDriver, simulated_planner
+        cell = SimulatedCell()
+        X_guess = cell.X_EC_guess
+        if args.max_samples is None:
+            args.max_samples = 40
+        args.samples, args.follow = str(out.path("samples.txt")), True
+        t0 = time.monotonic()
+        _, pool, next_pose = simulated_planner(cell, args.num_candidates, args.seed)
+        print(f"simulated cell: UR5e, camera on the flange (true mount unknown to the session), "
+              f"{cell.target_spec} board at x,y {cell.X_BT[0, 3]:g},{cell.X_BT[1, 3]:g} m; "
+              f"{len(pool)} reachable views planned in {time.monotonic() - t0:.1f} s; samples "
+              f"appended to {args.samples}")
+        driver = SimulatedDriver(args.samples, cell, seed=args.seed,
+                                 supersample=args.supersample)
+    else:
+        next_pose = _planner(args, mode)
     if args.resume:
         session = CalibrationSession.resume(args.state, next_pose)
         if session.mode != mode:
@@ -216,12 +334,20 @@ def run_session(args) -> int:
             print(session.last.line())
     else:
         options = CalibrationOptions(mode=mode, robot_accuracy_deg=float(acc[0]),
-                                     robot_accuracy_mm=float(acc[1]),
-                                     time_offset_s=0.0 if args.bag else None)
-        session = CalibrationSession(float(sigma[0]), float(sigma[1]), options, next_pose)
-        if next_pose is not None:
-            first = next_pose([], None, None)
-            print("start:" + _next_text(first))
+                                     robot_accuracy_mm=float(acc[1]))
+        print(floor_line(sigma, acc, X_guess))
+        session = CalibrationSession(float(sigma[0]), float(sigma[1]), options, next_pose,
+                                     max_samples=args.max_samples, hand_eye_guess=X_guess)
+    pending = {"pose": session.ask_pose(), "used": False}
+    if pending["pose"] is not None:
+        print("start:" + _next_text(pending["pose"]))
+
+    def next_for_driver():
+        if pending["used"]:          # executed, no sample back (a lost view): another pose
+            pending["pose"] = session.ask_pose()
+        pending["used"] = True
+        return pending["pose"]
+
     target = intrinsics = None
     if args.target_spec:
         from ..vision.targets import parse_target
@@ -229,32 +355,66 @@ def run_session(args) -> int:
     if args.intrinsics:
         intrinsics = parse_intrinsics(args.intrinsics)
     step = session.last
-    if args.image_topic and (target is None or intrinsics is None):
-        raise ValueError("--image-topic: image samples need --target-spec and --intrinsics")
-    source = _bag_samples(args) if args.bag else (
-        (parse_sample(line, where), where) for line, where in _lines(args))
-    for sample, where in source:
-        if sample is None:
+    if args.image_topic and target is None:
+        raise ValueError("--image-topic: image samples need --target-spec")
+    info_said = []
+
+    def on_poll(follower):
+        nonlocal intrinsics
+        # The whole tf stream: the batch estimates the clock offset from it, as calibrate.
+        session.robot_stream = follower.robot
+        if intrinsics is None and follower.camera_info is not None and not info_said:
+            intrinsics = follower.camera_info.intrinsics(
+                f"--camera-info-topic {follower.camera_info_from}")
+            info_said.append(1)
+            print(f"intrinsics from the CameraInfo on {follower.camera_info_from}")
+
+    if args.bag:
+        source = _bag_samples(args, on_poll)
+    else:
+        source = ([(parse_sample(line, where), where) for line, where in batch]
+                  for batch in _line_batches(args, driver, next_for_driver))
+    for batch in source:
+        added = 0
+        for sample, where in batch:
+            if sample is None:
+                continue
+            if "image" in sample:
+                if target is None or intrinsics is None:
+                    raise ValueError(f"{where}: an image sample needs --target-spec and "
+                                     "--intrinsics (or the bag's CameraInfo)")
+                img = sample["image"]
+                if isinstance(img, str):
+                    import cv2
+                    img = cv2.imread(sample["image"], cv2.IMREAD_GRAYSCALE)
+                    if img is None:
+                        raise ValueError(f"{where}: cannot read the image {sample['image']!r}")
+                session.add(sample["X_BE"], image=img, target=target, intrinsics=intrinsics,
+                            stamp=sample["stamp"], evaluate=False)
+            else:
+                try:
+                    session.add(sample["X_BE"], sample["X_CT"], stamp=sample["stamp"],
+                                evaluate=False)
+                except ValueError as e:
+                    raise ValueError(f"{where}: {e}") from None
+            added += 1
+        if not added:
             continue
-        if "image" in sample:
-            if target is None or intrinsics is None:
-                raise ValueError(f"{where}: an image sample needs --target-spec and --intrinsics")
-            img = sample["image"]
-            if isinstance(img, str):
-                import cv2
-                img = cv2.imread(sample["image"], cv2.IMREAD_GRAYSCALE)
-                if img is None:
-                    raise ValueError(f"{where}: cannot read the image {sample['image']!r}")
-            step = session.add(sample["X_BE"], image=img, target=target, intrinsics=intrinsics,
-                               stamp=sample["stamp"])
-        else:
-            step = session.add(sample["X_BE"], sample["X_CT"], stamp=sample["stamp"])
-        print(step.line() + _next_text(step.next_pose), flush=True)
+        step = session.evaluate()       # one fit for every sample that arrived together
+        pending["pose"], pending["used"] = step.next_pose, False
+        print(step.line() + (f" (+{added} samples)" if added > 1 else "")
+              + _next_text(step.next_pose), flush=True)
         if args.state:
             session.save(args.state)
         if step.stop:
             break
+        if args.max_samples is not None and len(session.X_BE) >= args.max_samples:
+            break
     files = []
+    if driver is not None:
+        files.append(out.path("samples.txt"))
+        print(f"simulated driver: {driver.frames} frames rendered, {driver.lost} views without "
+              "the board")
     if step is not None and step.stop:
         from ..calibration.report import write_json
         files.append(write_json(session.result, out.path("calibration.json")))
@@ -263,7 +423,16 @@ def run_session(args) -> int:
         name = "X_EC" if mode == "eye_in_hand" else "X_BC"
         print(f"calibrated after {len(session.X_BE)} samples: {name} "
               f"{','.join(f'{x:.5f}' for x in X[:3, 3])},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f},"
-              f"{q[0]:.6f}; verdict {session.result.verdict.status}")
+              f"{q[0]:.6f}; verdict {session.result.verdict.status}"
+              + ("" if session.result.time_offset is None else
+                 f"; clock offset {session.result.aligned.time_offset:+.5f} s (camera stamp − "
+                 "robot time, estimated)"))
+        if driver is not None:
+            X_true = driver.cell.X_EC
+            rot = np.degrees(rotation_angle(X[:3, :3].T @ X_true[:3, :3]))
+            tra = 1000 * np.linalg.norm(X[:3, 3] - X_true[:3, 3])
+            print(f"simulated truth: error {rot:.3f}° / {tra:.2f} mm, σ "
+                  f"{step.rotation_sigma_deg:.3f}° / {step.translation_sigma_mm:.2f} mm")
     p = out.path("session_steps.json")
     p.write_text(json.dumps({"samples": len(session.X_BE), "stop": bool(step and step.stop),
                              "last": None if step is None else step.to_dict()}, indent=1) + "\n")
@@ -272,7 +441,9 @@ def run_session(args) -> int:
     if step is None or not step.stop:
         n = len(session.X_BE)
         print(f"input ended after {n} samples before the σ target "
-              f"{sigma[0]:g}° / {sigma[1]:g} mm was reached with verdict OK", file=sys.stderr)
+              f"{sigma[0]:g}° / {sigma[1]:g} mm was reached with verdict OK"
+              + (f" (last verdict {step.verdict}: {step.message})" if step is not None
+                 and step.verdict else ""), file=sys.stderr)
         return 1
     return 0
 
@@ -287,6 +458,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="sample lines (see the module help), '-' for stdin")
     p.add_argument("--bag", metavar="PATH", help="samples from a ROS bag (ROS 2 directory, "
                    ".db3, .mcap; a finished ROS 1 .bag); with --follow, one being recorded")
+    p.add_argument("--simulate", action="store_true",
+                   help="no hardware: a simulated UR5e with a rendered camera executes each "
+                        "suggested pose and appends its sample line to --out/samples.txt, which "
+                        "the session reads like a real driver's file")
+    p.add_argument("--max-samples", type=int, default=None, metavar="N",
+                   help="end the session after N samples (default: no limit; --simulate 40)")
+    p.add_argument("--supersample", type=int, default=2, metavar="N",
+                   help="--simulate: the renderer's anti-aliasing factor (default 2)")
     p.add_argument("--follow", action="store_true",
                    help="keep reading the file (or --bag) as it grows (until stop or "
                         "--idle-timeout)")
@@ -303,11 +482,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="the camera topic (frames) hold X_TC, the camera in the target")
     b.add_argument("--image-topic", metavar="TOPIC", help="images of the board (Image or "
                    "CompressedImage; with --target-spec and --intrinsics)")
+    b.add_argument("--camera-info-topic", metavar="TOPIC",
+                   help="--image-topic: the CameraInfo (default: camera_info beside the image "
+                        "topic, as calibrate; 'none' to ignore it); --intrinsics overrides it")
     b.add_argument("--poll-s", type=float, default=0.5, metavar="SECONDS",
                    help="--follow: how often to re-read the bag (default 0.5)")
-    p.add_argument("--target-sigma", default="0.1,0.5", metavar="DEG,MM",
+    p.add_argument("--target-sigma", default="0.1,1.0", metavar="DEG,MM",
                    help="stop when the hand-eye σ (RMS radius) is at most DEG and MM (default "
-                        "0.1,0.5)")
+                        "0.1,1.0; it must be above the floor --robot-accuracy puts under σ, "
+                        "≈ √3 × the accuracy)")
     p.add_argument("--robot-accuracy", default="0.03,0.3", metavar="DEG,MM",
                    help="the robot's pose accuracy added to the σ (default 0.03,0.3)")
     p.add_argument("--mode", choices=("eye-in-hand", "eye-to-hand"), default="eye-in-hand",
@@ -327,14 +510,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--feasible: the board's size (m) from the target origin along x and y, "
                         "its corners kept in the image (with --intrinsics)")
     g.add_argument("--hand-eye", metavar="POSE", help="rough X_EC (X_BC eye-to-hand), "
-                   "x,y,z,qx,qy,qz,qw")
+                   "x,y,z,qx,qy,qz,qw (also tells the robot's column from the camera's when "
+                   "the data fit both alike)")
     g.add_argument("--target", metavar="POSE", help="target pose X_BT (X_ET eye-to-hand), "
                    "x,y,z[,qx,qy,qz,qw]")
     p.add_argument("--target-spec", metavar="SPEC",
                    help="the board of image samples (e.g. chessboard:9x6:0.0236)")
     p.add_argument("--intrinsics", metavar="fx,fy,cx,cy,W,H", help="camera intrinsics (pixels)")
     p.add_argument("--state", metavar="FILE", help="save the session state (JSON) after each "
-                   "sample")
+                   "sample (a new file or an earlier session's state; never another file)")
     p.add_argument("--resume", action="store_true", help="continue the session saved in --state")
     p.add_argument("--out", default="out/session", metavar="DIR",
                    help="output directory (default out/session)")

@@ -11,6 +11,8 @@ options) -> CalibrationResult`` (``api``), and each stage in the order the data 
   intrinsics refined as chosen, and the pixel-level checks;
 - ``checks``: the verdict (OK / WARN / FAIL) with the usual mistakes tried as alternatives;
   ``changepoint``: a move of the target or of the camera during the recording;
+- ``session``: ``CalibrationSession``, a live calibration — samples one by one, the next pose,
+  stop when σ reaches a target with verdict OK;
 - ``online``: the replay through the on-line filters; ``task_space``: σ where a user acts;
 - ``report``: the text summary and ``calibration.json``.
 
@@ -25,8 +27,11 @@ from .corners import CornerStage, calibrate_images, refine_with_corners
 from .inputs import Streams, bag_image_streams, bag_streams, file_streams, image_streams
 from .pipeline import CalibrationResult, calibrate_streams
 from .report import table, to_dict, write_json
+from .session import CalibrationSession, CandidatePoses, SessionStep
 
-__all__ = ["CalibrationOptions", "CalibrationResult", "CornerStage", "DEFAULT_ROBOT_ACCURACY",
+__all__ = ["CalibrationOptions", "CalibrationResult", "CalibrationSession", "CandidatePoses",
+           "CornerStage", "DEFAULT_ROBOT_ACCURACY",
            "Reason", "Streams", "Verdict", "bag_image_streams", "bag_streams", "calibrate",
            "calibrate_files", "calibrate_images", "calibrate_streams", "file_streams", "image_streams",
-           "read_inputs", "refine_with_corners", "solve", "table", "to_dict", "write_json"]
+           "read_inputs", "refine_with_corners", "SessionStep", "solve", "table", "to_dict",
+           "write_json"]

@@ -224,8 +224,13 @@ def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+#: Nested wide searches (each narrowing the range about the previous best) before the offset is
+#: called unobservable: a short overlap could otherwise narrow it forever.
+MAX_WIDE_SEARCHES = 4
+
+
 def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, step,
-                 units: str) -> TimeOffsetEstimate:
+                 units: str, depth: int = 0) -> TimeOffsetEstimate:
     """``estimate_time_offset`` when ±R leaves fewer than half of the camera samples inside the
     robot's span for every offset: each grid offset is scored on the camera samples its own
     robot instants cover (at least half of those covered at offset 0, so offset 0 always
@@ -265,13 +270,14 @@ def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, 
     margin = np.minimum(tc - best - t0, t1 - (tc - best))
     keeps = float(np.sort(margin)[::-1][need - 1])
     near = estimate_time_offset(robot, shifted, min(R, max(keeps, 4 * (grid[1] - grid[0]))),
-                                lags, step)
+                                lags, step, _depth=depth + 1)
     return TimeOffsetEstimate(best + near.offset, R, near.grid + best, near.cost,
                               near.num_motions, near.residual_rms_deg)
 
 
 def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: float = 0.5,
-                         lags=(1, 2, 4, 8), step: float | None = None) -> TimeOffsetEstimate:
+                         lags=(1, 2, 4, 8), step: float | None = None,
+                         _depth: int = 0) -> TimeOffsetEstimate:
     """Estimates the constant offset (camera stamp − robot time) in [−search_range, search_range].
 
     For each lag L in ``lags`` the rotation angle θ_A of the camera motion between camera samples
@@ -318,9 +324,16 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     ok = np.flatnonzero((tc - R >= t0) & (tc + R <= t1))
     inside = int(np.count_nonzero((tc >= t0) & (tc <= t1)))
     if len(ok) < max(4, inside // 2) and inside >= 8:
+        if _depth >= MAX_WIDE_SEARCHES:
+            # The range about each wide search's best stays too wide for the overlap (a short
+            # recording, e.g. a bag still being recorded): not estimable yet.
+            raise UnobservableTimeOffset(
+                f"time offset estimation: {camera.source} overlaps the robot's time span too "
+                f"little to estimate the offset ({len(ok)} of {inside} camera samples stay "
+                "inside it for every candidate offset)")
         # A range wide for the recording's length: every candidate offset on its own overlap
         # first, then the usual search in a narrow range about the best one.
-        return _wide_search(robot, camera, interp, R, lags, step, units)
+        return _wide_search(robot, camera, interp, R, lags, step, units, _depth)
     if len(ok) < 4:
         raise UnobservableTimeOffset(
             f"time offset estimation: only {len(ok)} camera samples of {camera.source} stay "

@@ -1,7 +1,7 @@
 """A live calibration session: add samples one by one, get the estimate, its σ, the verdict so
 far and the next pose to visit after each; stop when σ reaches the user's target with verdict OK.
 
-    session = CalibrationSession(target_sigma_deg=0.1, target_sigma_mm=0.5, next_pose=planner)
+    session = CalibrationSession(target_sigma_deg=0.1, target_sigma_mm=1.0, next_pose=planner)
     step = session.add(X_BE, X_CT)          # or session.add(X_BE, image=img, target=..., intrinsics=K)
     print(step.line()); if step.stop: result = session.result
 
@@ -48,15 +48,34 @@ from ..estimation.manifold import HandEyeTargetFilter
 from ..estimation.planning import plan_next_poses
 from ..estimation.se3 import inverse, rotation_angle
 from ..estimation.validation import as_transform
-from ..recorded.formats import pose_stream
+from ..recorded.formats import MAX_TRANSLATION, pose_stream
 from .api import CalibrationOptions, solve
 from .inputs import Streams
 from .task_space import task_sigmas
 
 #: State file format version.
 STATE_VERSION = 1
+#: The state file's "format" field: what ``is_session_state`` recognises.
+STATE_FORMAT = "handeye_drake session state"
 #: Fewest samples before the first batch attempt.
 MIN_BATCH_SAMPLES = 4
+#: A sample's X_BE this close to a pose the session suggested was taken there (deg, m).
+ASKED_DEG, ASKED_M = 2.0, 0.01
+#: A rough hand-eye transform (a drawing) is trusted to this (deg, m) to tell a swap.
+GUESS_DEG, GUESS_M = 20.0, 0.05
+
+
+def sigma_floor(robot_accuracy, X_hand=None) -> tuple[float, float]:
+    """The σ (deg, mm; RMS radius as the session reports it) that no number of samples goes
+    below: the robot's pose error constant over the recording (``pipeline.
+    robot_error_covariance``, per-axis ``robot_accuracy`` = (deg, m)) is absorbed by the
+    hand-eye transform. Without ``X_hand`` (4×4) the hand-eye translation's share is left out:
+    a lower bound."""
+    if robot_accuracy is None:
+        return 0.0, 0.0
+    from .pipeline import robot_error_covariance
+    cov = robot_error_covariance(np.eye(4) if X_hand is None else X_hand, robot_accuracy)
+    return math.degrees(_radius(cov[:3, :3])), 1000.0 * _radius(cov[3:, 3:])
 
 
 @dataclass
@@ -181,12 +200,21 @@ class CalibrationSession:
         batch_every: run the batch at least every this many samples.
         max_samples: stop suggesting poses after this many samples (None: no limit); the status
             stays "continue" with a message saying the target was not reached.
+        hand_eye_guess: optional rough X_EC (X_BC eye-to-hand), 4×4: tells the robot's poses
+            from the camera's when the data cannot (``roles_evidence``).
+
+    A target below the floor the robot's accuracy puts under σ (``sigma_floor``) can never be
+    reached: ValueError naming ``target_sigma_deg`` / ``target_sigma_mm`` with the floor.
+    Typed samples are checked as ``calibrate`` checks pose files (swapped or inverted streams,
+    quaternion order, units, clock offset): a sample file whose columns are swapped, say, never
+    stops; when the data fit both readings alike the session needs ``roles_evidence``.
     """
 
-    def __init__(self, target_sigma_deg: float = 0.1, target_sigma_mm: float = 0.5,
+    def __init__(self, target_sigma_deg: float = 0.1, target_sigma_mm: float = 1.0,
                  options: CalibrationOptions | None = None, next_pose=None,
                  camera_sigma_deg: float = 0.1, camera_sigma_mm: float = 1.0,
-                 batch_every: int = 5, max_samples: int | None = None):
+                 batch_every: int = 5, max_samples: int | None = None,
+                 hand_eye_guess=None):
         for name, v in (("target_sigma_deg", target_sigma_deg),
                         ("target_sigma_mm", target_sigma_mm),
                         ("camera_sigma_deg", camera_sigma_deg),
@@ -207,6 +235,18 @@ class CalibrationSession:
             raise ValueError("next_pose: expected a callable (samples_X_BE, X_H, X_F, "
                              "rotation_sigma, translation_sigma) -> dict or None")
         self.target = (float(target_sigma_deg), float(target_sigma_mm))
+        self.hand_eye_guess = None if hand_eye_guess is None else as_transform(
+            hand_eye_guess, "hand_eye_guess", rigid=True)
+        self.floor = sigma_floor(options.robot_accuracy, self.hand_eye_guess)
+        for k, (name, unit) in enumerate((("target_sigma_deg", "°"), ("target_sigma_mm", " mm"))):
+            if self.target[k] <= self.floor[k]:
+                acc = (options.robot_accuracy_deg, options.robot_accuracy_mm)
+                raise ValueError(
+                    f"{name}: {self.target[k]:g}{unit} is below the floor {self.floor[k]:.3g}"
+                    f"{unit} that the robot's accuracy ({acc[0]:g}° / {acc[1]:g} mm per axis, "
+                    "constant over the recording) puts under σ — no number of samples reaches "
+                    f"it; ask for more than {self.floor[k]:.3g}{unit}, or give the robot's "
+                    "measured accuracy")
         self.options = options
         self.mode = options.mode
         self.next_pose = next_pose
@@ -220,14 +260,22 @@ class CalibrationSession:
         self._batch_error = ""
         self._filter = None
         self.last = None
+        self.suggested = []               # poses X_BE the session asked for
+        #: The whole robot stream (``PoseStream`` with timestamps, e.g. a bag's tf) when the
+        #: samples carry stamps: the batch then estimates the clock offset as ``calibrate``.
+        self.robot_stream = None
+        self.detections = []              # the image samples' detections (None: a typed pose)
+        self._intrinsics = None
 
     # ------------------------------------------------------------------------------ input
     def add(self, X_BE, X_CT=None, *, image=None, target=None, intrinsics=None,
-            stamp: float | None = None) -> SessionStep:
+            stamp: float | None = None, evaluate: bool = True) -> SessionStep | None:
         """Adds one sample: the robot pose X_BE with the measured X_CT, or with an ``image`` of the
         ``target`` (a ``vision.targets`` spec or target) seen with ``intrinsics``
         (``vision.detection.detect_target`` measures X_CT). Returns the ``SessionStep``.
 
+        ``evaluate=False`` only queues the sample (returns None; the filter still takes it):
+        samples arriving faster than a batch fit runs are queued, then ``evaluate()`` fits once.
         A sample whose image shows no target is skipped (the step says why). ValueError naming
         the argument on bad input."""
         X_BE = as_transform(X_BE, "X_BE", rigid=True)
@@ -242,17 +290,31 @@ class CalibrationSession:
             det = detect_target(image, target, intrinsics)
             if not det.found:
                 self.skipped.append(det.reason)
+                if not evaluate:
+                    return None
                 step = self._step()
                 step.message = f"sample skipped: target not found ({det.reason}); " + step.message
                 self.last = step
                 return step
             X_CT, source = det.X_CT, "image"
+            self._intrinsics = intrinsics
         X_CT = as_transform(X_CT, "X_CT", rigid=True)
+        for name, X in (("X_BE", X_BE), ("X_CT", X_CT)):
+            d = float(np.linalg.norm(X[:3, 3]))
+            if d > MAX_TRANSLATION:
+                raise ValueError(f"{name}: translation of length {d:g} exceeds "
+                                 f"{MAX_TRANSLATION:g}: poses are expected in metres — are "
+                                 "these millimetres?")
         self.X_BE.append(X_BE)
         self.X_CT.append(X_CT)
         self.stamps.append(None if stamp is None else float(stamp))
         self.sources.append(source)
+        self.detections.append(det if source == "image" else None)
         self._update_filter(X_BE, X_CT)
+        return self.evaluate() if evaluate else None
+
+    def evaluate(self) -> SessionStep:
+        """The ``SessionStep`` on every sample added so far (a batch fit when one is due)."""
         self.last = self._step()
         return self.last
 
@@ -286,18 +348,45 @@ class CalibrationSession:
         times = None
         if all(s is not None for s in self.stamps) and np.all(np.diff(self.stamps) > 0):
             times = np.array(self.stamps)
-        streams = Streams(robot=pose_stream(np.array(self.X_BE), times, "session robot"),
+        # Typed samples (a driver's lines) are read as calibrate reads pose files: which column
+        # is the robot's, the quaternion order, the units and the clock offset are all tried
+        # (``checks``); only the session's own detections have known roles.
+        images_only = all(o == "image" for o in self.sources)
+        robot = pose_stream(np.array(self.X_BE), times, "session robot")
+        if self.robot_stream is not None and times is not None:
+            robot = self.robot_stream    # every robot pose recorded: the offset is estimable
+        # Images: the corner-level fit of every image, as ``calibrate`` on images.
+        corners = images_only and self._intrinsics is not None and all(
+            d is not None for d in self.detections)
+        streams = Streams(robot=robot,
                           camera=pose_stream(np.array(self.X_CT), times, "session camera"),
-                          inputs={"session": {"samples": n}}, roles_known=True)
+                          inputs={"session": {"samples": n}}, roles_known=images_only,
+                          quaternion_streams=() if images_only else ("robot", "camera"),
+                          intrinsics=self._intrinsics if corners else None,
+                          detections=list(self.detections) if corners else [])
         options = self.options
         if times is None and options.time_offset_s is None:
             options = dataclasses.replace(options, time_offset_s=0.0)
+        tries = [options]
+        if times is not None and options.time_offset_s is None and robot is not \
+                self.robot_stream:
+            # Stamped pairs: the driver paired them, maybe across a clock offset (a moving
+            # robot): the offset is estimated, as ``calibrate --time-offset auto`` (robot
+            # poses interpolated between the samples); unobservable (still poses): none.
+            tries.insert(0, dataclasses.replace(options, time_offset_s="auto"))
         try:
-            result = solve(streams, options)
+            for k, o in enumerate(tries):
+                try:
+                    result = solve(streams, o)
+                    break
+                except ValueError:
+                    if k + 1 == len(tries):
+                        raise
         except ValueError as e:
             self._batch_error = " ".join(str(e).split())
             self._batch_n = n
             return
+        self._settle_roles(result)
         self.result, self._batch_n, self._batch_error = result, n, ""
         # The filter's noise: the camera's (from the batch) and the robot's accuracy together.
         acc = self.options.robot_accuracy or (0.0, 0.0)
@@ -306,6 +395,50 @@ class CalibrationSession:
         self._filter = self._new_filter(result.X_hand, sr, st)
         for a, b in zip(self.X_BE, self.X_CT):
             self._update_filter(a, b)
+
+    def roles_evidence(self, result=None) -> str:
+        """What says the first pose of each sample is the robot's (X_BE), not the camera's, or
+        "" when nothing does. Swapped streams fit AX = ZB exactly as well, so without this (or
+        the timestamps' roughness evidence of ``checks.swap_evidence``) a swap is a tie:
+        - the robot reached the poses the session asked for (most samples' X_BE within
+          ``ASKED_DEG`` / ``ASKED_M`` of a suggested pose);
+        - the batch's hand-eye transform agrees with the rough one given (``hand_eye_guess``,
+          within ``GUESS_DEG`` / ``GUESS_M``) while the swapped reading's does not."""
+        n = len(self.X_BE)
+        if self.suggested and n:
+            asked = sum(any(np.linalg.norm(S[:3, 3] - X[:3, 3]) <= ASKED_M and
+                            rotation_angle(S[:3, :3].T @ X[:3, :3]) <= math.radians(ASKED_DEG)
+                            for S in self.suggested) for X in self.X_BE)
+            if asked >= max(MIN_BATCH_SAMPLES, 0.5 * n):
+                return (f"the robot reached the poses the session asked for ({asked} of {n} "
+                        "samples)")
+        result = result or self.result
+        if self.hand_eye_guess is not None and result is not None:
+            # The swapped reading's hand-eye transform: eye-in-hand X_TB (X_CT X_TB X_BE =
+            # X_CE), eye-to-hand X_CB (X_CT X_TE = X_CB X_BE).
+            X_swap = inverse(result.X_fixed if self.mode == "eye_in_hand" else result.X_hand)
+            if self._near_guess(result.X_hand) and not self._near_guess(X_swap):
+                return "the hand-eye transform agrees with the rough one given"
+        return ""
+
+    def _near_guess(self, X) -> bool:
+        G = self.hand_eye_guess
+        return bool(np.linalg.norm(G[:3, 3] - X[:3, 3]) <= GUESS_M
+                    and rotation_angle(G[:3, :3].T @ X[:3, :3]) <= math.radians(GUESS_DEG))
+
+    def _settle_roles(self, result) -> None:
+        """A swap the data cannot decide is decided by ``roles_evidence`` (then the verdict is
+        recomputed with the swapped reading ruled out; without evidence its WARN stays and the
+        session cannot stop)."""
+        swapped = next((h for h in result.hypotheses if h.code == "swapped_streams"), None)
+        if swapped is None or (swapped.evidence or {}).get("reading") is not None:
+            return
+        why = self.roles_evidence(result)
+        if not why:
+            return
+        from . import checks
+        swapped.evidence = dict(swapped.evidence or {}, reading="as_read", session=why)
+        result.verdict = checks.verdict(result)
 
     def _sigmas(self, X_hand, cov):
         rot = math.degrees(_radius(cov[:3, :3]))
@@ -358,6 +491,7 @@ class CalibrationSession:
             st = max(self.result.fit.translation_sigma, 1e-6)
         if self.next_pose is not None:
             step.next_pose = self.next_pose(list(self.X_BE), step.X_hand, step.X_fixed, sr, st)
+            self._asked(step.next_pose)
         if step.status == "collecting":
             why = f" ({self._batch_error})" if self._batch_error else ""
             step.message = f"not determined yet{why}"
@@ -374,6 +508,21 @@ class CalibrationSession:
             step.message += "; record a new pose (rotate ≥ 20° about a new axis)"
         return step
 
+    def _asked(self, pose):
+        if pose is not None and pose.get("X_BE") is not None:
+            self.suggested.append(np.asarray(pose["X_BE"], float))
+
+    def ask_pose(self):
+        """The planner's next pose now (None without a planner or none left), remembered as
+        asked for: the first pose, or another after a view that gave no sample."""
+        if self.next_pose is None:
+            return None
+        last = self.last
+        pose = self.next_pose(list(self.X_BE), None if last is None else last.X_hand,
+                              None if last is None else last.X_fixed)
+        self._asked(pose)
+        return pose
+
     def finish(self):
         """The batch result on every sample (runs the batch if the last one is older)."""
         if len(self.X_BE) > self._batch_n:
@@ -385,12 +534,15 @@ class CalibrationSession:
 
     # ------------------------------------------------------------------------------ state
     def to_dict(self) -> dict:
-        return {"version": STATE_VERSION, "target_sigma_deg": self.target[0],
+        return {"format": STATE_FORMAT, "version": STATE_VERSION, "target_sigma_deg": self.target[0],
                 "target_sigma_mm": self.target[1],
                 "options": dataclasses.asdict(self.options),
                 "camera_sigma_deg": math.degrees(self.camera_sigma[0]),
                 "camera_sigma_mm": 1000.0 * self.camera_sigma[1],
                 "batch_every": self.batch_every, "max_samples": self.max_samples,
+                "hand_eye_guess": None if self.hand_eye_guess is None else
+                self.hand_eye_guess.tolist(),
+                "suggested": [X.tolist() for X in self.suggested],
                 "samples": [{"X_BE": a.tolist(), "X_CT": b.tolist(), "stamp": s, "source": o}
                             for a, b, s, o in zip(self.X_BE, self.X_CT, self.stamps,
                                                   self.sources)],
@@ -400,6 +552,8 @@ class CalibrationSession:
     def save(self, path) -> None:
         """Writes the state as JSON (atomically: a crash leaves the previous file)."""
         p = Path(path)
+        if p.is_dir():
+            raise ValueError(f"state: {str(p)!r} is a directory, not a file")
         tmp = p.with_name(p.name + ".tmp")
         tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
         tmp.replace(p)
@@ -416,8 +570,10 @@ class CalibrationSession:
                 raise ValueError(f"version {d.get('version')!r}, expected {STATE_VERSION}")
             s = cls(d["target_sigma_deg"], d["target_sigma_mm"],
                     CalibrationOptions(**d["options"]), next_pose, d["camera_sigma_deg"],
-                    d["camera_sigma_mm"], d["batch_every"], d["max_samples"])
+                    d["camera_sigma_mm"], d["batch_every"], d["max_samples"],
+                    d.get("hand_eye_guess"))
             samples = d["samples"]
+            s.suggested = [np.asarray(X, float) for X in d.get("suggested", [])]
         except (KeyError, TypeError, json.JSONDecodeError, ValueError) as e:
             raise ValueError(f"state: {p.name} is not a session state ({e})") from None
         s.skipped = list(d.get("skipped", []))
@@ -435,7 +591,27 @@ class CalibrationSession:
         self.X_CT.append(X_CT)
         self.stamps.append(k.get("stamp"))
         self.sources.append(k.get("source", "pose"))
+        self.detections.append(None)
         self._update_filter(X_BE, X_CT)
 
 
-__all__ = ["CalibrationSession", "CandidatePoses", "MIN_BATCH_SAMPLES", "SessionStep"]
+def is_session_state(path) -> bool:
+    """True when ``path`` is a file a session saved (JSON with ``STATE_FORMAT``); False for
+    anything else (a sample recording, a user's file, a directory). Reads at most 64 MiB."""
+    p = Path(path)
+    if not p.is_file():
+        return False
+    try:
+        if p.stat().st_size > 64 << 20:
+            return False
+        d = json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    # (States written before the "format" field: version 1 with the session's own keys.)
+    return isinstance(d, dict) and (d.get("format") == STATE_FORMAT or (
+        "format" not in d and d.get("version") == 1 and {"target_sigma_deg", "options",
+                                                          "samples"} <= d.keys()))
+
+
+__all__ = ["CalibrationSession", "CandidatePoses", "MIN_BATCH_SAMPLES", "SessionStep",
+           "is_session_state", "sigma_floor"]

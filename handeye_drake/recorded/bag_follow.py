@@ -219,7 +219,12 @@ class BagFollower:
             (``bags.read_bag``'s meanings; images are returned as arrays for the caller's
             detector).
         camera_invert: the camera topic (or frames) hold X_TC.
+        camera_info_topic: with ``image_topic``, the ``CameraInfo`` topic (default:
+            ``camera_info`` beside the image topic, as ``calibrate`` finds it; "none": ignore).
 
+    ``camera_info`` is the first ``bags.CameraInfo`` read (None until one is; its topic in
+    ``camera_info_from``); ``robot`` the robot's whole tf stream read so far (a
+    ``PoseStream`` with timestamps: what the clock offset is estimated from).
     ``poll()`` returns a list of new samples, each {"X_BE", "X_CT" or "image", "stamp",
     "where"}; ``dropped`` lists (where, why) of camera messages that gave none; ``waiting`` is
     True while the bag could not be read or a camera message awaits later robot poses.
@@ -227,7 +232,8 @@ class BagFollower:
     """
 
     def __init__(self, path, robot_frames="base_link:tool0", camera_topic=None,
-                 camera_frames=None, image_topic=None, camera_invert: bool = False):
+                 camera_frames=None, image_topic=None, camera_invert: bool = False,
+                 camera_info_topic: str | None = None):
         self.path = Path(path)
         if not self.path.exists():
             raise ValueError(f"{self.path}: no such file or directory")
@@ -240,6 +246,9 @@ class BagFollower:
         self.camera_frames = None if camera_frames is None else bags._pair(camera_frames,
                                                                            "camera_frames")
         self.camera_invert = bool(camera_invert)
+        self.camera_info_topic = camera_info_topic
+        self.camera_info, self.camera_info_from = None, None
+        self.robot = None
         self._done_stamps = set()       # camera stamps (ns) returned or dropped
         self._images_seen = 0           # image messages returned or dropped
         self.dropped = []
@@ -304,6 +313,8 @@ class BagFollower:
             self.last_error = f"{self.path}: unreadable while being written ({e}); retrying"
             return []
         interp = None
+        if robot is not None:
+            self.robot = robot
         if robot is not None and len(robot.poses):
             interp = PoseInterpolator(robot.timestamps, robot.poses)
         out, waiting = [], False
@@ -328,9 +339,19 @@ class BagFollower:
         return out
 
     def _read_robot(self, reader, bag):
+        info_topic = None
+        if self.camera_info is None and self.camera_info_topic != "none":
+            topics = bags._topics(reader)
+            info_topic = self.camera_info_topic or bags.find_camera_info(
+                self.image_topic, topics, only_beside=True)
+            if info_topic is not None and info_topic not in topics:
+                info_topic = None       # not recorded yet: next poll
         try:
-            return bags._read(reader, bag, self.robot_frames, None, None, None, None, False,
-                              None).robot
+            data = bags._read(reader, bag, self.robot_frames, None, None, None, info_topic,
+                              False, None)
+            if data.camera_info is not None:
+                self.camera_info, self.camera_info_from = data.camera_info, info_topic
+            return data.robot
         except ValueError as e:
             if not _not_yet(str(e)):
                 raise

@@ -28,10 +28,12 @@ sample.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..estimation import kernels
+from ..estimation import defaults, kernels
 from ..estimation.se3 import inverse, pose_to_vector, vector_to_pose
 from ..estimation.solvers import METHODS as SOLVER_METHODS
 from ..estimation.startup import estimator_type, start_estimator, two_motion_estimate
@@ -43,6 +45,10 @@ STATUS_FILTERING = 1.0    # two-motion solution found, on-line estimator running
 STATUS_INIT_FAILED = 2.0  # filtering from the guess (motions rejected, or M = 0)
 
 _SAMPLE = 24  # a synchronized sample: X_BE and X_CT as pose vectors
+
+
+#: Share of rejected measurements above which the calibrator's σ outputs are nan (refused).
+REFUSED_SIGMA_REJECTIONS = 0.25
 
 
 class HandEyeCalibrator(LeafSystem):
@@ -80,8 +86,14 @@ class HandEyeCalibrator(LeafSystem):
         X_EC_estimate (12): the camera on the hand, inv(X_CE_estimate).
         X_EC_two_motion (12): the classical two-motion solution (the initial guess until known).
         X_EC_std (6): standard deviations of X_EC: rotation about E's axes (deg), translation
-            (m, in E), from the estimator's covariance.
-        X_EC_covariance (36): row-major 6×6 covariance of X_EC's error [δθ (rad); δt (m)].
+            (m, in E), from the estimator's covariance scaled by the camera noise estimated
+            on-line (``_noise_scale``: the fused measurements' mean NIS over its expectation,
+            ≥ 1, after ``defaults.NIS_MIN_UPDATES`` of them), so a σ setting that understates
+            the camera's noise does not give a σ smaller than the error; nan (refused: no
+            basis) while the gate rejects more than ``REFUSED_SIGMA_REJECTIONS`` of the
+            measurements (a noise setting far below the camera's).
+        X_EC_covariance (36): row-major 6×6 covariance of X_EC's error [δθ (rad); δt (m)],
+            scaled alike.
         status (4): [STATUS_*, accepted updates, rejected measurements, last NIS (−1 if none)].
 
     Discrete state: the estimator's vector, the mode, the key frames, the buffer of
@@ -276,10 +288,11 @@ class HandEyeCalibrator(LeafSystem):
             if code != 2:
                 discrete_state.set_value(self._estimator_index, v)
                 indices = self._output_indices
+                scale = self._noise_scale(v)
                 discrete_state.set_value(indices["X_CE_estimate"], x_CE)
                 discrete_state.set_value(indices["X_EC_estimate"], x_EC)
-                discrete_state.set_value(indices["X_EC_std"], std)
-                discrete_state.set_value(indices["X_EC_covariance"], cov)
+                discrete_state.set_value(indices["X_EC_std"], std * math.sqrt(scale))
+                discrete_state.set_value(indices["X_EC_covariance"], cov * scale)
                 discrete_state.set_value(indices["status"], status)
                 return
         X_BE, X_CT, _ = kernels.sample_poses(X_BE_vec, X_CT_vec)
@@ -294,8 +307,37 @@ class HandEyeCalibrator(LeafSystem):
         v = estimator.to_vector()
         discrete_state.set_value(self._estimator_index, v)
         self._memo = (v.tobytes(), estimator)  # the next step's state: no decoding then
-        for name, value in self._OutputValues(estimator, mode).items():
+        values = self._OutputValues(estimator, mode)
+        scale = self._noise_scale(v)
+        values["X_EC_std"] = values["X_EC_std"] * math.sqrt(scale)
+        values["X_EC_covariance"] = values["X_EC_covariance"] * scale    # nan: refused
+        for name, value in values.items():
             discrete_state.set_value(self._output_indices[name], value)
+
+    def _noise_scale(self, v) -> float:
+        """The factor (≥ 1) on the estimator's covariance that makes the fused measurements'
+        mean NIS its expectation (the measurement dimension): the camera noise estimated
+        on-line, once ``defaults.NIS_MIN_UPDATES`` measurements are in. The estimator's σ
+        settings may understate the camera's noise (they are often guessed); its innovations
+        say by how much. (Only inflates, and only beyond the 99.9 % bound of a right setting:
+        a noise overstated leaves σ conservative.)"""
+        # The estimators' state vectors end with ``EstimatorBase._COUNTERS``: …, nis_sum,
+        # nis_count, excitation (9).
+        nis_sum, nis_count = float(v[-11]), float(v[-10])
+        updates, rejected = float(v[-17]), float(v[-16])
+        if updates + rejected >= defaults.NIS_MIN_UPDATES and \
+                rejected > REFUSED_SIGMA_REJECTIONS * (updates + rejected):
+            # The gate refuses a large share of the measurements: the noise setting is far
+            # from the camera's, the estimate follows only the measurements it let through,
+            # and no scaling gives its σ a basis. σ = nan: refused (``status`` counts them).
+            return math.nan
+        if nis_count < defaults.NIS_MIN_UPDATES:
+            return 1.0
+        dof = self._kind._MEASUREMENT_DOF
+        ratio = nis_sum / (nis_count * dof)
+        # Only where the data say so (3.1 standard deviations of the mean of χ²/dof, the
+        # 99.9 % one-sided bound): a right setting's σ stays as the estimator computes it.
+        return ratio if ratio > 1.0 + 3.1 * math.sqrt(2.0 / (dof * nis_count)) else 1.0
 
     @staticmethod
     def _OutputValues(e, mode) -> dict:
@@ -372,7 +414,9 @@ def add_hand_eye_calibrator(builder, *, estimator, period: float, X_BE, X_CT,
     Args:
         builder: the ``DiagramBuilder``.
         estimator: the estimator's settings with their σ (e.g. ``TargetFilter(rotation_sigma=
-            0.002, translation_sigma=0.0005)``, rad and m).
+            0.002, translation_sigma=0.0005)``, rad and m). A σ that understates your camera's
+            noise is corrected on-line: the reported ``X_EC_std`` is scaled by the noise the
+            measurements show (their mean NIS; see ``HandEyeCalibrator``'s outputs).
         period: the camera's sample period (s).
         X_EC_initial_guess: the camera on the hand, 4×4 (or ``X_CE_initial_guess=`` in
             ``kwargs``, its inverse).

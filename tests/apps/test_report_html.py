@@ -80,6 +80,13 @@ def test_images_report_is_self_contained_with_every_image_worst_first(images_rep
     assert len(text.encode()) < 3_000_000
 
 
+def test_residual_plots_number_images_from_0_as_the_files(images_report):
+    _, text, _ = images_report
+    svgs = [base64.b64decode(v).decode() for v in _data_uris(text, "image/svg+xml")]
+    norms = next(s for s in svgs if "Pose residual per sample" in s)
+    assert "image number (from 0, as the files)" in norms
+
+
 def test_predicted_corners_are_the_calibrated_chain(tmp_path):
     """The panels' predictions are ``reprojection.predict`` of the answer (X_H⁻¹ X_R⁻¹ X_F,
     the answer's intrinsics), and their residuals are what the fit explains with its per-image
@@ -136,6 +143,10 @@ def test_a_failed_calibration_still_writes_its_report(tmp_path):
     assert code == 1
     assert "verdict: FAIL" in text and "the target&#x27;s declared size is wrong" in text
     assert text.index("verdict: FAIL") < text.index("Result: X_EC")
+    # The refused transform does not look like an answer: a banner, struck through, hatched.
+    result = text[text.index('id="result"'):text.index('id="images"')]
+    assert "REFUSED — verdict FAIL: this is not a calibration" in result
+    assert '<div class="cards refused">' in result and "— refused</h3>" in result
     assert_self_contained(text)
     assert len(re.findall(r'<div class="panel" id="img-\d+">', text)) == 14
 
@@ -150,6 +161,9 @@ def test_pose_files_get_pose_residual_plots_with_the_outliers_marked(tmp_path):
     norms = next(s for s in svgs if "Pose residual per sample" in s)
     # The shipped recording has two wrong camera poses: both plots mark outliers.
     assert "outlier" in components and "outlier" in norms and "held out" in norms
+    # An answer is not marked refused; a log axis reads in plain numbers (mm), not 10^x.
+    assert "REFUSED" not in text and "cards refused" not in text
+    assert "translation (mm)" in norms and "10^{" not in norms
     assert len(_data_uris(text, "image/png")) == 1  # the 3D picture
 
 
@@ -185,6 +199,10 @@ def test_an_alternative_that_was_not_fitted_shows_no_residuals():
                                                         "max_hand_eye_distance_m": 0.5})
     rows = re.findall(r"<tr><td>.*?</tr>", _alternatives_html(result))
     assert len(rows) == 3 and "∞" not in "".join(rows)
+    # No empty column: each row says whether it explains the data better than as read.
+    assert "<th>better than as read?</th>" in _alternatives_html(result)
+    assert all("<td></td>" not in r for r in rows)
+    assert "<td>the reference</td>" in rows[0] and "<td>no</td>" in rows[1]
     assert "the camera&#x27;s translations at another scale" in rows[2]
     assert "not fitted: the best camera translation scale is 0.9997: as given" in rows[2]
     assert rows[2].count('<td class="n">–</td>') == 3

@@ -25,6 +25,13 @@ X_BC = make_transform(rotation_exp(np.array([2.2, 0.3, 0.1])), [0.9, 0.4, 0.8])
 X_ET = make_transform(rotation_exp(np.array([0.1, 0.05, -0.2])), [0.02, -0.03, 0.09])
 OPTIONS = CalibrationOptions(robot_accuracy_deg=0.02, robot_accuracy_mm=0.1)
 E2H = CalibrationOptions(mode="eye_to_hand", robot_accuracy_deg=0.02, robot_accuracy_mm=0.1)
+NO_ROBOT_ERROR = CalibrationOptions(robot_accuracy_deg=0, robot_accuracy_mm=0)
+# Rough mounts (a drawing): a few degrees and millimetres off. Typed samples fit the swapped
+# reading as well; the rough mount tells which column is the robot's.
+GUESS = make_transform(rotation_exp(np.array([0.05, -0.03, 1.6])) @ rotation_exp(
+    np.array([0.04, -0.03, 0.02])), [0.035, -0.025, 0.055])
+GUESS_E2H = make_transform(rotation_exp(np.array([2.2, 0.3, 0.1])) @ rotation_exp(
+    np.array([0.03, 0.02, -0.04])), [0.88, 0.42, 0.79])
 
 
 def _look(z, roll):
@@ -67,7 +74,7 @@ def _error(X, X_true):
 
 
 def test_stops_when_the_batch_sigma_reaches_the_target_with_verdict_ok():
-    s = CalibrationSession(0.2, 1.0, OPTIONS)
+    s = CalibrationSession(0.2, 1.0, OPTIONS, hand_eye_guess=GUESS)
     steps = []
     for x in samples(30, seed=1):
         steps.append(s.add(*x))
@@ -90,7 +97,7 @@ def test_stops_when_the_batch_sigma_reaches_the_target_with_verdict_ok():
 
 
 def test_never_stops_short_of_the_target():
-    s = CalibrationSession(0.001, 0.001, OPTIONS, max_samples=10)
+    s = CalibrationSession(0.001, 0.001, NO_ROBOT_ERROR, max_samples=10, hand_eye_guess=GUESS)
     steps = [s.add(*x) for x in samples(10, seed=2)]
     assert not any(x.stop for x in steps)
     assert steps[-1].status == "continue" and "was not reached" in steps[-1].message
@@ -106,10 +113,10 @@ def test_a_failed_verdict_never_stops():
 
 def test_save_and_resume_give_the_uninterrupted_answer(tmp_path):
     data = samples(14, seed=4)
-    whole = CalibrationSession(0.01, 0.01, OPTIONS)
+    whole = CalibrationSession(0.01, 0.01, NO_ROBOT_ERROR, hand_eye_guess=GUESS)
     for x in data:
         whole.add(*x)
-    first = CalibrationSession(0.01, 0.01, OPTIONS)
+    first = CalibrationSession(0.01, 0.01, NO_ROBOT_ERROR, hand_eye_guess=GUESS)
     for x in data[:7]:
         first.add(*x)
     state = tmp_path / "state.json"
@@ -127,7 +134,7 @@ def test_save_and_resume_give_the_uninterrupted_answer(tmp_path):
 
 
 def test_eye_to_hand():
-    s = CalibrationSession(0.2, 1.0, E2H)
+    s = CalibrationSession(0.2, 1.0, E2H, hand_eye_guess=GUESS_E2H)
     for x in samples(30, seed=5, mode="eye_to_hand"):
         st = s.add(*x)
         if st.stop:
@@ -194,6 +201,11 @@ def test_the_session_imports_without_drake_or_apps():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+def _seven(X) -> str:
+    q = quat_wxyz(X[:3, :3])
+    return ",".join(f"{v:.10f}" for v in [*X[:3, 3], q[1], q[2], q[3], q[0]])
+
+
 def _line(X_BE, X_CT):
     def seven(X):
         q = quat_wxyz(X[:3, :3])
@@ -208,7 +220,8 @@ def test_cli_stops_and_writes_the_calibration(tmp_path, capsys):
     out = tmp_path / "out"
     state = tmp_path / "state.json"
     code = main(["session", "--samples", str(f), "--target-sigma", "0.2,1.0",
-                 "--robot-accuracy", "0.02,0.1", "--state", str(state), "--out", str(out)])
+                 "--robot-accuracy", "0.02,0.1", "--hand-eye", _seven(GUESS), "--state",
+                 str(state), "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0, text
     assert "stop: σ" in text and "calibrated after" in text
@@ -221,7 +234,7 @@ def test_cli_input_ending_before_the_target_and_bad_input(tmp_path, capsys):
     f = tmp_path / "samples.txt"
     f.write_text("\n".join(_line(*x) for x in samples(5, seed=1)) + "\n")
     code = main(["session", "--samples", str(f), "--target-sigma", "0.001,0.001",
-                 "--out", str(tmp_path / "o1")])
+                 "--robot-accuracy", "0,0", "--out", str(tmp_path / "o1")])
     assert code == 1 and "input ended after 5 samples" in capsys.readouterr().err
     f.write_text("1 2 3\n")
     code = main(["session", "--samples", str(f), "--out", str(tmp_path / "o2")])

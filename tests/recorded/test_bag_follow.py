@@ -87,7 +87,9 @@ def test_session_follows_a_bag_being_recorded(tmp_path, capsys, storage):
     lines = [x for x in text.splitlines() if x.startswith("[")]
     n = int(lines[-1][1:4])
     assert "stop: σ" in lines[-1] and 4 < n <= written_at_stop
-    assert [int(x[1:4]) for x in lines] == list(range(1, n + 1))   # one line per new sample
+    # One line per poll that brought samples (samples arriving together are fitted once).
+    counts = [int(x[1:4]) for x in lines]
+    assert counts == sorted(set(counts)) and counts[0] >= 1
     doc = json.loads((out / "calibration.json").read_text())
     assert doc["verdict"]["status"] == "OK"
     X = np.array(doc["X_EC"]["matrix"])

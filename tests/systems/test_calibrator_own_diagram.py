@@ -45,6 +45,23 @@ def test_without_self_calibration_motions_it_starts_from_the_guess():
     assert rotation_error_deg(ex.X_EC_TRUE, X) < 0.2 * rotation_error_deg(ex.X_EC_TRUE, guess)
 
 
+@pytest.mark.parametrize("seed,factor", [(1, 1.5), (1, 3.0)])
+def test_a_camera_noisier_than_told_never_gives_a_sigma_below_the_error(seed, factor):
+    # The calibrator told a fraction of the camera's noise: its σ covers the error (the noise
+    # estimated on-line from the innovations), or, when the gate refuses a large share of the
+    # measurements, it is nan (refused: no basis) — never a small σ on a wrong estimate.
+    ex = _example()
+    X, std, status = ex.run(seed=seed, told_noise=(ex.NOISE[0] / factor,
+                                                    ex.NOISE[1] / factor))
+    assert status[0] == STATUS_FILTERING
+    if np.isnan(std).any():
+        assert np.isnan(std).all() and status[2] > 0.25 * (status[1] + status[2])
+    else:
+        assert _within(ex, X, std)
+    if factor == 3.0:
+        assert np.isnan(std).all()      # (its estimate is 17° / 130 mm off)
+
+
 def test_construction_says_what_it_needs():
     with pytest.raises(ValueError, match="exactly one of X_EC_initial_guess"):
         HandEyeCalibrator(0.1, estimator=TargetFilter(rotation_sigma=0.002,

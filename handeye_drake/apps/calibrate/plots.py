@@ -21,12 +21,16 @@ def plot_online(result, path) -> Path:
     init = (rotation_diff_deg(o0.X_H_init, result.X_hand),
             translation_diff(o0.X_H_init, result.X_hand))
     xlabel = "camera time (s)" if result.aligned.camera_times is not None else "sample index"
+    from matplotlib.ticker import FuncFormatter
+    # Translations in mm, log axes labelled with plain numbers (0.01, 1, 100), not 10^x.
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
     for k, (ax, y0, label) in enumerate(((axes[0], init[0], "rotation (deg)"),
-                                         (axes[1], init[1], "translation (m)"))):
+                                         (axes[1], 1000 * init[1], "translation (mm)"))):
         for o in replays:
-            y = o.rotation_diff_deg if k == 0 else o.translation_diff
-            ax.semilogy(o.times, np.maximum(y, 1e-9), label=o.label)
-        ax.axhline(max(y0, 1e-9), color="C3", ls="--", lw=1, label="two-motion start")
+            y = o.rotation_diff_deg if k == 0 else 1000 * np.asarray(o.translation_diff)
+            ax.semilogy(o.times, np.maximum(y, 1e-6), label=o.label)
+        ax.axhline(max(y0, 1e-6), color="C3", ls="--", lw=1, label="two-motion start")
+        ax.yaxis.set_major_formatter(plain)
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)

@@ -66,6 +66,10 @@ nav{font-size:14px;margin:8px 0 6px}nav a{margin-right:14px}
 .cards{display:flex;flex-wrap:wrap;gap:14px;align-items:flex-start}
 .card{background:#fff;border:1px solid #ddd;border-radius:8px;padding:10px 16px;flex:1 1 300px}
 .card.wide{flex:2 1 560px}
+.refused .card{background:repeating-linear-gradient(135deg,#fff,#fff 12px,#fbeceb 12px,
+ #fbeceb 24px);border:2px dashed #b3261e;color:#6b6b6b}
+.refused .big{text-decoration:line-through;text-decoration-color:#b3261e}
+.refusal{color:#b3261e;font-weight:700;font-size:17px;margin:6px 0}
 table{border-collapse:collapse;font-size:14px;background:#fff}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#eee}th.row{white-space:nowrap;font-weight:600;background:#f4f4f2}td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
@@ -338,9 +342,15 @@ def _result_html(result) -> str:
         noise = (f"corners: {f.pixel_sigma:.3f} px per coordinate (RMS {f.rms_px:.3f} px); "
                  "pose-level: " + noise)
     held = result.settings.get("fixed") or {}
+    refused = result.verdict is not None and result.verdict.status == "FAIL"
+    # A FAIL's transform is shown for diagnosis only: struck through, hatched, and said so.
+    banner = ('<p class="refusal">REFUSED — verdict FAIL: this is not a calibration; the '
+              "transform the fit reached is shown struck through, for diagnosis only "
+              "(the verdict's reasons say what is wrong).</p>" if refused else "")
     return (
-        '<div class="cards"><div class="card wide">'
-        f"<h3>{_e(hand)}: {_e(what)}</h3>{_pose_rows(fit.X_H, fit.covariance)}"
+        banner + f'<div class="cards{" refused" if refused else ""}"><div class="card wide">'
+        f"<h3>{_e(hand)}: {_e(what)}{' — refused' if refused else ''}</h3>"
+        f"{_pose_rows(fit.X_H, fit.covariance)}"
         '<p class="sub">roll-pitch-yaw: extrinsic X-Y-Z (URDF rpy); rotation σ: about the axes '
         f'of {"E" if mode == "eye_in_hand" else "B"}; 1σ from the fit{_e(acc)}.</p>'
         + (f"<p>held at known values (--fix): {_e(', '.join(f'{k}={v:g}' for k, v in held.items()))}</p>"
@@ -523,7 +533,11 @@ def _sample_axis(result):
     a = result.aligned
     if a.camera_times is not None:
         return np.asarray(a.camera_times, float) - float(a.camera_times[0]), "camera time (s)"
-    return np.asarray(a.camera_lines, float), "camera line / image number"
+    if isinstance(result.inputs, dict) and "images" in result.inputs:
+        # Image k is the k-th file (1-based in the stream): numbered from 0 as the files
+        # (img_000, ...) and the detections/ drawings are.
+        return np.asarray(a.camera_lines, float) - 1, "image number (from 0, as the files)"
+    return np.asarray(a.camera_lines, float), "camera file line"
 
 
 def _residual_norms_plot(result) -> str:
@@ -543,6 +557,8 @@ def _residual_norms_plot(result) -> str:
         pos = y[np.isfinite(y) & (y > 0)]
         if len(pos) and pos.max() > 20 * np.median(pos):
             ax.set_yscale("log")  # outliers far above: the others stay readable
+            from matplotlib.ticker import FuncFormatter
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # not 10^x
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     axes[0].set_title("Pose residual per sample: measured X_CT against the one the result "
@@ -773,8 +789,9 @@ def _alternatives_html(result) -> str:
                                            result.settings["max_hand_eye_distance_m"])}
     rows = []
     for h in hyps:
-        mark = ('<span class="bad">explains the data better</span>' if h.code in explains
-                else "")
+        mark = ("the reference" if h.code == "as_read" else
+                '<span class="bad">yes: explains the data better</span>' if h.code in explains
+                else "no")
         # An alternative that was not fitted (its reading did not apply: e.g. the best camera
         # scale is the one given) has no residuals: "–", not an infinitely bad fit.
         values = (h.rotation_deg, 1000 * h.translation_m, h.hand_eye_distance)
@@ -785,11 +802,12 @@ def _alternatives_html(result) -> str:
         numbers = "".join(f'<td class="n">{_num(v, "{:.3g}") if fitted else "–"}</td>'
                           for v in values)
         rows.append(f"<tr><td>{_e(description)}{err}</td>{numbers}"
-                    f"<td>{mark}</td><td>{_e(h.fix)}</td></tr>")
+                    f"<td>{mark}</td><td>{_e(h.fix) or '–'}</td></tr>")
     return ("<p>The usual mistakes, each undone and re-fitted quickly on a subset of the samples "
             "(median pose residuals): one that fits far better than the data as read is named "
             "by the verdict.</p><table><tr><th>reading</th><th>rotation (deg)</th>"
-            "<th>translation (mm)</th><th>|t| of the hand-eye (m)</th><th></th><th>fix</th></tr>"
+            "<th>translation (mm)</th><th>|t| of the hand-eye (m)</th><th>better than as read?</th>"
+            "<th>fix</th></tr>"
             + "".join(rows) + "</table>")
 
 
