@@ -4,11 +4,13 @@ translations are scaled by it, eye-in-hand and eye-to-hand, default settings
 (``--refine-intrinsics auto``).
 
     python benchmarks/target_scale.py [--factors 1.003 1.005 1.01 1.02 1.05] [--seed 7] [--n 14]
+        [--modes eye_in_hand eye_to_hand rendered]
 
 One synthesized image set per mode (``tests/image_synth.py``: 640×480, the board 0.35–0.5 m from
 the camera; eye-to-hand the camera 1.27 m from the robot base). "print f": the board's true sizes
 f× those declared (--target divided by f); "robot f": the robot file's translations f× true.
-Each row: verdict and reason codes, the scale found ± σ, the translation error of the answer and
+"rendered": the shipped Drake-rendered set (``handeye_drake/data/example_images``, eye-in-hand,
+UR5e, 14 images). Each row: verdict and reason codes, the scale found ± σ, the translation error of the answer and
 its σ (norms, mm), error/σ, and the error of each reading's answer (mm).
 """
 
@@ -36,7 +38,7 @@ def run_case(root: Path, folder: Path, truth: dict, mode: str, reading: str, fac
     spec, robot = truth["spec"], folder / "robot_poses.tum"
     if reading == "print":
         spec = SPEC.format(0.04 / factor, 0.03 / factor)
-    else:
+    elif factor != 1.0:
         out = []
         for line in robot.read_text().splitlines():
             f = line.split()
@@ -46,6 +48,8 @@ def run_case(root: Path, folder: Path, truth: dict, mode: str, reading: str, fac
         robot = root / f"robot_{mode}_{factor}.tum"
         robot.write_text("\n".join(out) + "\n")
     out = root / f"out_{mode}_{reading}_{factor}"
+    if mode == "rendered":
+        mode = "eye_in_hand"
     with contextlib.redirect_stdout(io.StringIO()):
         code = main(["calibrate", "--images", str(folder), "--robot", str(robot), "--target",
                      spec, "--intrinsics", truth["intrinsics"], "--mode",
@@ -80,8 +84,15 @@ if __name__ == "__main__":
               f"{'scale ± σ':>20s} {'err mm':>8s} {'σ mm':>8s} {'err/σ':>6s}  each reading's "
               "error (mm)")
         for mode in a.modes:
-            folder = root / mode
-            truth = synthesize(folder, mode, n=a.n, seed=a.seed)
+            if mode == "rendered":
+                from handeye_drake.recorded.example import data_dir
+                folder = data_dir() / "example_images"
+                t = json.loads((folder / "truth.json").read_text())
+                truth = {"X_hand": np.array(t["X_EC"]), "spec": t["target"],
+                         "intrinsics": str(folder / "intrinsics.yaml")}
+            else:
+                folder = root / mode
+                truth = synthesize(folder, mode, n=a.n, seed=a.seed)
             for factor in [1.0] + a.factors:
                 for reading in (("print",) if factor == 1.0 else ("print", "robot")):
                     r = run_case(root, folder, truth, mode, reading, factor)
