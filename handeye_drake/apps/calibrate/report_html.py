@@ -763,7 +763,9 @@ def _checks_html(result) -> str:
 
 #: Names of the alternatives whose description is only set when they apply.
 _ALTERNATIVE_NAMES = {"camera_scale": "the camera's translations at another scale (a wrong "
-                                      "target size, or a target printed at another scale)"}
+                                      "target size, or a target printed at another scale)",
+                      "camera_focal": "the camera's depths at another scale (a wrong focal "
+                                      "length in the intrinsics that measured the poses)"}
 
 
 def _alternatives_html(result) -> str:
