@@ -10,8 +10,8 @@ One synthesized image set per mode (``tests/image_synth.py``: 640×480, the boar
 the camera; eye-to-hand the camera 1.27 m from the robot base). "print f": the board's true sizes
 f× those declared (--target divided by f); "robot f": the robot file's translations f× true.
 "rendered": the shipped Drake-rendered set (``handeye_drake/data/example_images``, eye-in-hand,
-UR5e, 14 images). Each row: verdict and reason codes, the scale found ± σ, the translation error of the answer and
-its σ (norms, mm), error/σ, and the error of each reading's answer (mm).
+UR5e, 14 images). Each row: verdict and reason codes, the scale found ± σ, the translation error
+of the answer and its σ (norms, mm), error/σ, and the error of each reading's answer (mm).
 """
 
 from __future__ import annotations

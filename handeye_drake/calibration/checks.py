@@ -315,10 +315,10 @@ def _camera_focal_alternative(reading: Reading) -> Alternative:
             raise ValueError(f"the best camera depth scale is {factor:.4g}: as given")
         alt.description = (f"the camera's depths are {1 / factor:.4g}× the true ones and their "
                            "lateral offsets are not: the focal length of the camera intrinsics "
-                           f"is {1 / factor:.4g}× the true one (not a target of another size, "
-                           "which would scale all three alike)")
+                           f"is about {1 / factor:.3g}× the true one (not a target of another "
+                           "size, which would scale all three alike)")
         alt.fix = (f"calibrate the camera (or let the images refine it: --refine-intrinsics "
-                   f"auto); the focal length given is {1 / factor:.4g}× what the poses say")
+                   f"auto); the focal length given is about {1 / factor:.3g}× what the poses say")
         return r, _stream(_with_scaled_depths(c.poses, factor), c), None
 
     alt.apply = apply
