@@ -632,9 +632,9 @@ def _pixel_checks(stage: CornerStage, max_noise) -> None:
                                     f"{out} of {K} images do not fit the others (corner-level)"))
 
 
-#: Pose-level reasons the pixel-level checks supersede: the scale and intrinsics readings, and
-#: the self-calibrated intrinsics' warning (their uncertainty is in the joint fit).
-SUPERSEDED = ("camera_scale", "self_calibrated_intrinsics")
+#: Pose-level reasons the pixel-level checks supersede: the scale and focal-length readings of
+#: the poses, and the self-calibrated intrinsics' warning (their uncertainty is in the joint fit).
+SUPERSEDED = ("camera_scale", "camera_focal", "self_calibrated_intrinsics")
 #: With a wrong target size or intrinsics, these reasons are its consequences, not other causes.
 CONSEQUENCES = ("residuals", "sigma", "held_out", "camera_scale", "robot_millimetres",
                 "camera_millimetres", "implausible_result", "outliers", "weak", "other_mode",

@@ -162,3 +162,20 @@ def test_pose_level_tells_a_focal_error_from_a_print_scale(sets, kind, factor):
         assert abs(k / factor - 1) < 0.02, msg
     else:
         assert "camera_scale" in codes and "camera_focal" not in codes, codes
+
+
+def test_images_with_a_focal_error_name_the_intrinsics_not_the_scale(tmp_path, sets):
+    """The pixels separate a focal length off (depth-dependent image positions) from a board
+    scale (rigid): the intrinsics are named, once (the poses' focal reading is superseded)."""
+    folder, truth = sets["eye_to_hand"]
+    fx, fy, cx, cy = map(float, truth["intrinsics"].split(","))
+    out = tmp_path / "o"
+    code = main(["calibrate", "--images", str(folder), "--robot",
+                 str(folder / "robot_poses.tum"), "--target", truth["spec"], "--intrinsics",
+                 f"{fx * 1.03},{fy * 1.03},{cx},{cy}", "--mode", "eye-to-hand",
+                 "--refine-intrinsics", "none", "--out", str(out)])
+    doc = json.loads((out / "calibration.json").read_text())
+    assert code == 1 and [r["code"] for r in doc["verdict"]["reasons"]] == ["intrinsics"], \
+        doc["verdict"]
+    assert doc["corner_level"]["scale"]["explained_by_intrinsics"] or \
+        not doc["corner_level"]["scale"]["significant"]
