@@ -19,8 +19,10 @@ consistent with plausible measurement noise and with its own σ. Each check belo
 Alternatives (``default_alternatives``), each re-fitted quickly on a subset of the samples and
 compared by their median pose residuals: quaternions written scalar-first (w x y z) in either
 file, robot and camera streams swapped, the other mode (equivalently: robot poses X_EB given for
-X_BE, or camera poses X_TC for X_CT), a file in millimetres, and a clock offset other than the
-one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
+X_BE, or camera poses X_TC for X_CT), a file in millimetres, the camera's translations at
+another scale (a target of another size) or only their depths (a focal length off: the one of
+the two that leaves the smaller translation residuals is named), and a clock offset other than
+the one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
 as well (the target's pose takes the hand-eye transform's place), so the stream that carries
 the noise says which is the camera's (``swap_evidence``; without timestamps a tie is a WARN),
 whatever the hand-eye distance; and the camera translations' scale is the maximum-likelihood

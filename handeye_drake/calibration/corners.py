@@ -2,8 +2,10 @@
 (``estimation.reprojection``) over every inlier image, started from the pose-level result, with
 the intrinsics refined as chosen (``--refine-intrinsics``, default ``auto``: the model whose
 left-out images are predicted best), and the pixel-level checks of the verdict: the target's
-scale (a wrong declared size, named with its factor), the given intrinsics against what the
-images say, the pixel noise.
+scale (an unknown of the answer: a print off or the robot's translations scaled give the same
+pixels, so the answer's σ covers both readings and a WARN names them up to ``SCALE_WARN_MAX``;
+beyond, or a unit mistake, a FAIL names the factor — docs/target-scale.md), the given intrinsics
+against what the images say, the pixel noise.
 
 Frames as ``pipeline``: X_H is X_EC (eye-in-hand) or X_BC (eye-to-hand), X_F is X_BT or X_ET;
 covariances [δθ (rad); δt (m)] with R = exp(δθ) R̂.
@@ -77,6 +79,7 @@ class CornerStage:
     #: covers both readings of the scale: (X_H, X_F, cov_H, cov_F) (``scale_readings``).
     scale_fit: CornerFit = None
     scale_cv: dict = None
+    scale_variance_factor: float = 1.0
     answer: tuple = None
     data: CornerData = None
 
@@ -399,6 +402,7 @@ def _scale_check(stage: CornerStage, data, kwargs, seed: int = 0) -> None:
     if not np.isfinite(factor):
         inflation = stage.variance_factor
     _inflate(g, inflation)
+    stage.scale_variance_factor = inflation
     z = (g.scale - 1.0) / max(g.scale_std, 1e-12)
     significant = abs(z) > SCALE_SIGMAS and abs(g.scale - 1.0) > SCALE_MIN_ERROR
     explained_by = ""
@@ -512,6 +516,8 @@ def _use_scale(stage: CornerStage, hand: str) -> None:
     if g is None:
         return
     stage.fit = g
+    if stage.scale_cv is not None:   # the answer's own left-out prediction and σ factor
+        stage.cv, stage.variance_factor = stage.scale_cv, stage.scale_variance_factor
     if _unit_mistake(g.scale) is not None or abs(math.log(g.scale)) > math.log(1.5):
         # A unit or a size given wrongly: no robot is that far off; the answer is the one at
         # the pixels' scale (and the verdict a FAIL naming the factor).
