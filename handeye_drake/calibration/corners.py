@@ -271,8 +271,9 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
     return stage
 
 
-#: Target scales tried when the pose-level fit finds no answer at the declared size.
-SCALE_SEARCH = np.exp(np.linspace(math.log(0.02), math.log(50.0), 57))
+#: Target scales tried when the pose-level fit finds no answer at the declared size (a square of
+#: 0.1 mm declared for 25 mm is 250×; millimetres for metres 1000×).
+SCALE_SEARCH = np.exp(np.linspace(math.log(1e-3), math.log(2e3), 111))
 
 
 def calibrate_images(streams, settings: dict, refine: str = "auto"):
@@ -435,6 +436,8 @@ def _scale_check(stage: CornerStage, data, kwargs, seed: int = 0) -> None:
     if unit is None and off <= SCALE_WARN_MAX:
         return  # named with both readings by ``_use_scale`` (it knows the answers)
     what = (f"the sizes look like {unit}" if unit is not None else
+            "a size given wrongly (a digit or a unit off, the square's size for the marker's)"
+            if abs(math.log(f_s)) > math.log(1.5) else
             f"{100 * off:.3g} % is beyond a print's or a robot's tolerance (≤ "
             f"{100 * SCALE_WARN_MAX:g} % is answered with both readings): a size given wrongly "
             "(square for marker size, a ruler misread) or a print scaled to fit the page")

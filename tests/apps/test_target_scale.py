@@ -106,23 +106,31 @@ def test_the_right_size_is_ok_and_its_sigma_includes_the_scale(tmp_path, sets):
     assert _covered(truth, doc, "X_BC")
 
 
-def test_a_square_in_inches_is_named_as_such(tmp_path):
-    """chessboard:9x6:1 for a board of 1-inch squares: the poses at 1 m squares are ~20 m away,
-    which is the target's size, not the pose units."""
+@pytest.fixture(scope="module")
+def inch_board(tmp_path_factory):
     from tests.image_synth import synthesize
-    truth = synthesize(tmp_path / "imgs", "eye_in_hand", n=10, seed=4,
-                       spec="chessboard:9x6:0.0254")
-    truth["spec"] = "chessboard:9x6:1"
+    folder = tmp_path_factory.mktemp("inch") / "imgs"
+    return folder, synthesize(folder, "eye_in_hand", n=10, seed=4, spec="chessboard:9x6:0.0254")
+
+
+@pytest.mark.parametrize("spec, factor, named", [
+    ("chessboard:9x6:1", 0.0254, "the sizes look like inches given as metres"),
+    ("chessboard:9x6:0.0001", 254.0, "a size given wrongly")])
+def test_a_size_far_off_is_named_as_the_targets_not_the_poses_units(tmp_path, inch_board, spec,
+                                                                    factor, named):
+    """A board of 1-inch squares declared as 1 (m) or as 0.0001: the poses are ~20 m or 2 mm
+    away, which is the target's size, not a pose file's units (it was refused as millimetres,
+    and 0.0001 blamed on the robot's millimetres)."""
+    folder, truth = inch_board
     out = tmp_path / "o"
-    code = main(["calibrate", "--images", str(tmp_path / "imgs"), "--robot",
-                 str(tmp_path / "imgs" / "robot_poses.tum"), "--target", "chessboard:9x6:1",
-                 "--intrinsics", truth["intrinsics"], "--out", str(out)])
+    code = main(["calibrate", "--images", str(folder), "--robot",
+                 str(folder / "robot_poses.tum"), "--target", spec, "--intrinsics",
+                 truth["intrinsics"], "--refine-intrinsics", "none", "--out", str(out)])
     doc = json.loads((out / "calibration.json").read_text())
     reasons = doc["verdict"]["reasons"]
     assert code == 1 and [r["code"] for r in reasons] == ["target_size"], reasons
-    assert "inches given as metres" in reasons[0]["message"]
-    assert "translation-scale" not in reasons[0]["message"]
-    assert abs(doc["corner_level"]["scale"]["factor"] / 0.0254 - 1) < 1e-3
+    assert named in reasons[0]["message"] and "translation-scale" not in reasons[0]["message"]
+    assert abs(doc["corner_level"]["scale"]["factor"] / factor - 1) < 1e-3
     X = np.array(doc["X_EC"]["matrix"])
     assert np.linalg.norm(X[:3, 3] - truth["X_hand"][:3, 3]) < 1e-3
 
