@@ -28,10 +28,39 @@ def _page_mm(png: Path, dpi: float) -> tuple[float, float]:
     return width / dpi * 25.4, height / dpi * 25.4
 
 
+#: The smallest square, marker or tag (m) written: a printer's edge spread (≈ 0.05 mm) is 2.5 % of
+#: 2 mm, beyond the scale a calibration answers with both readings (docs/target-scale.md); and a
+#: smaller pattern is a spec in the wrong unit far more often than a wanted one.
+MIN_ELEMENT_M = 0.002
+#: The fewest printed pixels across the smallest element at --dpi.
+MIN_ELEMENT_PX = 8
+
+
+def _smallest_element(target) -> tuple[str, float]:
+    """(name, size in m) of the target's smallest printed square, marker or tag."""
+    sizes = [(name, getattr(target, name)) for name in ("square", "marker", "size")
+             if hasattr(target, name)]
+    return min(sizes, key=lambda v: v[1])
+
+
+def _check_printable(target, spec: str, dpi: float) -> None:
+    name, size = _smallest_element(target)
+    if size < MIN_ELEMENT_M:
+        raise ValueError(
+            f"SPEC {spec}: its {name} would be {1000 * size:.3g} mm, too small to print at true "
+            f"scale (≥ {1000 * MIN_ELEMENT_M:g} mm) or to detect — sizes are in metres "
+            f"(a 2 cm {name} is 0.02)")
+    if size * dpi / 0.0254 < MIN_ELEMENT_PX:
+        raise ValueError(f"--dpi {dpi:g}: the {name} of {1000 * size:.3g} mm would be "
+                         f"{size * dpi / 0.0254:.1f} px wide (≥ {MIN_ELEMENT_PX} px needed): "
+                         "raise --dpi")
+
+
 def run_target(args) -> int:
     from ..vision.targets import (object_points_description, parse_target, target_caption,
                                   write_printable)
     target = parse_target(args.spec)
+    _check_printable(target, args.spec, args.dpi)
     if Path(args.out).suffix.lower() in (".png", ".svg", ".pdf"):
         raise ValueError(f"--out {args.out}: a folder, like every command's --out (target.png, "
                          "target.svg and target.pdf are written into it)")

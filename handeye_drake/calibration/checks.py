@@ -19,8 +19,10 @@ consistent with plausible measurement noise and with its own σ. Each check belo
 Alternatives (``default_alternatives``), each re-fitted quickly on a subset of the samples and
 compared by their median pose residuals: quaternions written scalar-first (w x y z) in either
 file, robot and camera streams swapped, the other mode (equivalently: robot poses X_EB given for
-X_BE, or camera poses X_TC for X_CT), a file in millimetres, and a clock offset other than the
-one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
+X_BE, or camera poses X_TC for X_CT), a file in millimetres, the camera's translations at
+another scale (a target of another size) or only their depths (a focal length off: the one of
+the two that leaves the smaller translation residuals is named), and a clock offset other than
+the one forced. Two readings are not decided by those medians: swapped streams fit AX = ZB exactly
 as well (the target's pose takes the hand-eye transform's place), so the stream that carries
 the noise says which is the camera's (``swap_evidence``; without timestamps a tie is a WARN),
 whatever the hand-eye distance; and the camera translations' scale is the maximum-likelihood
@@ -215,6 +217,7 @@ def default_alternatives(robot: PoseStream, camera: PoseStream, reading: Reading
                 _stream(with_scaled_translations(c.poses, 1e-3), c) if w == "camera" else c,
                 None)))
     alts.append(_camera_scale_alternative(reading))
+    alts.append(_camera_focal_alternative(reading))
     if (reading.time_offset_mode == "given" or "same timestamps" in reading.time_offset_mode) \
             and robot.has_timestamps and camera.has_timestamps:
         alts.append(Alternative(
@@ -264,6 +267,62 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
         alt.fix = (f"multiply the target's sizes by {factor:.4g} (or "
                    f"--camera-translation-scale {factor:.4g} for pose files)")
         return r, _stream(with_scaled_translations(c.poses, factor), c), None
+
+    alt.apply = apply
+    return alt
+
+
+def _golden_log(cost, lo: float, hi: float, iterations: int = 14) -> float:
+    """The factor in [lo, hi] minimizing ``cost(log factor)`` (golden section on log)."""
+    a, b = math.log(lo), math.log(hi)
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = b - g * (b - a), a + g * (b - a)
+    f1, f2 = cost(x1), cost(x2)
+    for _ in range(iterations):
+        if f1 < f2:
+            b, x2, f2 = x2, x1, f1
+            x1 = b - g * (b - a)
+            f1 = cost(x1)
+        else:
+            a, x1, f1 = x1, x2, f2
+            x2 = a + g * (b - a)
+            f2 = cost(x2)
+    return math.exp(0.5 * (a + b))
+
+
+def _with_scaled_depths(X_CT: np.ndarray, factor: float) -> np.ndarray:
+    out = np.array(X_CT, dtype=float, copy=True)
+    out[:, 2, 3] *= factor
+    return out
+
+
+#: Range of the focal factor searched by the focal alternative.
+FOCAL_RANGE = (0.8, 1.25)
+
+
+def _camera_focal_alternative(reading: Reading) -> Alternative:
+    """The focal length of the intrinsics that measured the camera poses off by a factor k: a
+    target's pose from its image then has its depth (z of X_CT, along the optical axis) k× the
+    true one and its lateral offsets unchanged (u − cx = fx X / Z), where a target of another
+    size scales all three alike — and only a focal error moves the rotations (a tilted target's
+    foreshortening). ``apply`` searches k and words the alternative with it."""
+    alt = Alternative("camera_focal", "", "", None)
+
+    def apply(r, c):
+        def cost(log_k):
+            scaled = _stream(_with_scaled_depths(c.poses, math.exp(log_k)), c)
+            return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
+        # 10 steps bracket log k to 0.45 · 0.618¹⁰ ≈ 0.004: enough for the 1 % it must resolve.
+        factor = _golden_log(cost, *FOCAL_RANGE, iterations=10)
+        if abs(factor - 1.0) <= QUICK_SCALE_RESOLUTION:
+            raise ValueError(f"the best camera depth scale is {factor:.4g}: as given")
+        alt.description = (f"the camera's depths are {1 / factor:.4g}× the true ones and their "
+                           "lateral offsets are not: the focal length of the camera intrinsics "
+                           f"is about {1 / factor:.3g}× the true one (not a target of another "
+                           "size, which would scale all three alike)")
+        alt.fix = (f"calibrate the camera (or let the images refine it: --refine-intrinsics "
+                   f"auto); the focal length given is about {1 / factor:.3g}× what the poses say")
+        return r, _stream(_with_scaled_depths(c.poses, factor), c), None
 
     alt.apply = apply
     return alt
@@ -458,6 +517,14 @@ def verdict(result) -> Verdict:
     hints = [] if better or base is None else explaining(
         result.hypotheses, max_deg, max_m, result.settings["max_hand_eye_distance_m"],
         SOMEWHAT_BETTER)
+    by_code = {h.code: h for h in result.hypotheses}
+    sc, fo = by_code.get("camera_scale"), by_code.get("camera_focal")
+    if sc is not None and fo is not None:
+        # A target scale and a focal error both change the camera's translations: the reading
+        # that leaves the smaller translation residuals is the cause (the other explains part).
+        drop = "camera_focal" if sc.translation_m <= fo.translation_m else "camera_scale"
+        better = [h for h in better if h.code != drop]
+        hints = [h for h in hints if h.code != drop]
     scale = getattr(result, "scale_test", None)
     if scale is not None:
         # The maximum-likelihood profile of the scale decides, not the quick fits' medians.

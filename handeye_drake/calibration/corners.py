@@ -2,8 +2,10 @@
 (``estimation.reprojection``) over every inlier image, started from the pose-level result, with
 the intrinsics refined as chosen (``--refine-intrinsics``, default ``auto``: the model whose
 left-out images are predicted best), and the pixel-level checks of the verdict: the target's
-scale (a wrong declared size, named with its factor), the given intrinsics against what the
-images say, the pixel noise.
+scale (an unknown of the answer: a print off or the robot's translations scaled give the same
+pixels, so the answer's σ covers both readings and a WARN names them up to ``SCALE_WARN_MAX``;
+beyond, or a unit mistake, a FAIL names the factor — docs/target-scale.md), the given intrinsics
+against what the images say, the pixel noise.
 
 Frames as ``pipeline``: X_H is X_EC (eye-in-hand) or X_BC (eye-to-hand), X_F is X_BT or X_ET;
 covariances [δθ (rad); δt (m)] with R = exp(δθ) R̂.
@@ -27,9 +29,23 @@ from .checks import Reason, Verdict, _quick_fit
 from .pipeline import calibrate_streams, robot_error_covariance
 
 REFINE_CHOICES = INTRINSICS_MODELS + ("auto",)
-#: A target scale this many σ from 1 (and more than ``SCALE_MIN_ERROR`` off) FAILs the verdict.
+#: The target's scale s (true sizes / declared) is an unknown of the answer (docs/target-scale.md):
+#: this many σ from 1 and more than ``SCALE_MIN_ERROR`` off, it is named — a WARN with both
+#: readings (the print s× the declared size, or the robot's translations s× their true
+#: lengths) up to ``SCALE_WARN_MAX`` off, a FAIL beyond (a size given or printed wrongly, not a
+#: tolerance of a print or of a robot).
 SCALE_SIGMAS = 5.0
 SCALE_MIN_ERROR = 0.002
+SCALE_WARN_MAX = 0.03
+#: Factors that are a unit mistake (true / declared), named as such: inches, millimetres and
+#: centimetres given as metres or the other way, within ``UNIT_TOLERANCE``.
+UNIT_FACTORS = {0.0254: "inches given as metres", 1 / 0.0254: "metres given for inches",
+                0.001: "millimetres given as metres", 1000.0: "metres given for millimetres",
+                0.01: "centimetres given as metres", 100.0: "metres given for centimetres",
+                25.4: "inches given for millimetres", 1 / 25.4: "millimetres given for inches",
+                2.54: "inches given for centimetres", 1 / 2.54: "centimetres given for inches",
+                10.0: "a decimal place off", 0.1: "a decimal place off"}
+UNIT_TOLERANCE = 0.03
 #: Given intrinsics this many σ from the refined ones, with the hand-eye result moved this many σ
 #: by the difference: the given ones do not fit the images.
 INTRINSICS_SIGMAS = 5.0
@@ -59,6 +75,13 @@ class CornerStage:
     variance_factor: float = 1.0
     reasons: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    #: The fit with the target's scale free (``_scale_check``), and the answer from it that
+    #: covers both readings of the scale: (X_H, X_F, cov_H, cov_F) (``scale_readings``).
+    scale_fit: CornerFit = None
+    scale_cv: dict = None
+    scale_variance_factor: float = 1.0
+    answer: tuple = None
+    data: CornerData = None
 
     def to_dict(self) -> dict:
         f = self.fit
@@ -132,7 +155,16 @@ class CornerStage:
         s = self.scale
         if s.get("factor") is not None:
             out.append(f"target scale from the pixels: {s['factor']:.5f} ± {s['std']:.5f} "
-                       f"(1 = the declared size)")
+                       f"(1 = the declared size; an unknown of the answer)")
+            rd = s.get("readings") or {}
+            if "robot" in rd:
+                hand = hand_name_for(self)
+                mm = lambda X: " ".join(f"{1000 * v:+.2f}" for v in np.asarray(X)[:3, 3])
+                out.append(f"  {hand} translation (mm) if the print is {s['factor']:.5g}× the "
+                           f"declared size [{mm(rd['print'][hand])}], if the robot's "
+                           f"translations are {s['factor']:.5g}× long [{mm(rd['robot'][hand])}] "
+                           f"({1000 * rd['apart_m']:.3g} mm apart): the answer is their "
+                           "midpoint, its σ covers both")
         d = _difference(self.pose_level_X_H, f.X_H)
         out.append(f"pose-level result to corner-level: {d['rotation_deg']:.4f}° / "
                    f"{1000 * d['translation_m']:.3f} mm")
@@ -225,23 +257,23 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
     # factor they show (an a-posteriori variance factor, never a narrowing).
     factor = cv.get("chi2_per_dof", math.nan)
     inflation = float(factor) if np.isfinite(factor) and factor > 1.0 else 1.0
-    if inflation > 1.0:
-        fit.covariance = fit.covariance * inflation
-        fit.fixed_covariance = fit.fixed_covariance * inflation
-        fit.intrinsics_covariance = fit.intrinsics_covariance * inflation
-        fit.covariance_full = fit.covariance_full * inflation
+    _inflate(fit, inflation)
     stage = CornerStage(fit, refine, chosen, why, models, cv, {}, v0, intrinsics_source,
-                        X_H0.copy(), lines, data.image, inflation)
-    _scale_check(stage, data, kwargs)
+                        X_H0.copy(), lines, data.image, inflation, data=data)
+    _scale_check(stage, data, kwargs, result.seed)
+    # The target's scale is an unknown of the answer: the checks below judge the fit with it.
+    _use_scale(stage, "X_EC" if result.mode == "eye_in_hand" else "X_BC")
     if intrinsics_source == "given":
-        _intrinsics_check(stage, data, kwargs, tried if refine == "auto" else None)
+        _intrinsics_check(stage, data, kwargs, tried if refine == "auto" and
+                          stage.scale_fit is None else None)
     _pixel_checks(stage, result.settings["max_noise"])
     _apply(result, stage, robot_accuracy)
     return stage
 
 
-#: Target scales tried when the pose-level fit finds no answer at the declared size.
-SCALE_SEARCH = np.exp(np.linspace(math.log(0.02), math.log(50.0), 57))
+#: Target scales tried when the pose-level fit finds no answer at the declared size (a square of
+#: 0.1 mm declared for 25 mm is 250×; millimetres for metres 1000×).
+SCALE_SEARCH = np.exp(np.linspace(math.log(1e-3), math.log(2e3), 111))
 
 
 def calibrate_images(streams, settings: dict, refine: str = "auto"):
@@ -346,10 +378,11 @@ def _select_scaled(data, X_H0, X_F0, v0, candidates, scale0, seed, kwargs):
     return min(ok)[1], tried
 
 
-def _scale_check(stage: CornerStage, data, kwargs) -> None:
-    """Fits the target's scale too: a declared size that the pixels contradict FAILs, named with
-    its factor (never blamed on the robot's units: robot poses are metric by construction here
-    — a scale on the target alone is what the pixels measure)."""
+def _scale_check(stage: CornerStage, data, kwargs, seed: int = 0) -> None:
+    """Fits the target's scale s too (true sizes / declared: a print off, a wrong size given, or
+    — the same pixels — the robot's translations s× their true lengths). Sets ``stage.scale``
+    and, when the fit converges and the intrinsics do not explain the scale instead,
+    ``stage.scale_fit`` (the fit with s free, its σ widened by its own left-out images)."""
     f = stage.fit
     try:
         g = fit_corners(data, f.X_H, f.X_F, f.intrinsics, stage.model, free_scale=True,
@@ -358,7 +391,19 @@ def _scale_check(stage: CornerStage, data, kwargs) -> None:
     except ValueError as e:
         stage.scale = {"factor": None, "std": None, "error": str(e)}
         return
-    g.scale_std *= math.sqrt(stage.variance_factor)
+    # The free-scale fit's own left-out images set its variance factor (the fixed-size fit's
+    # is inflated by the very scale error it leaves unmodelled).
+    factor = math.nan
+    try:
+        stage.scale_cv = cross_validate(data, g, free_scale=True, seed=seed)
+        factor = stage.scale_cv.get("chi2_per_dof", math.nan)
+    except ValueError:
+        pass
+    inflation = float(factor) if np.isfinite(factor) and factor > 1.0 else 1.0
+    if not np.isfinite(factor):
+        inflation = stage.variance_factor
+    _inflate(g, inflation)
+    stage.scale_variance_factor = inflation
     z = (g.scale - 1.0) / max(g.scale_std, 1e-12)
     significant = abs(z) > SCALE_SIGMAS and abs(g.scale - 1.0) > SCALE_MIN_ERROR
     explained_by = ""
@@ -369,7 +414,7 @@ def _scale_check(stage: CornerStage, data, kwargs) -> None:
             c = fit_corners(data, g.X_H, g.X_F, f.intrinsics, "k1k2", free_scale=True,
                             scale0=g.scale, pixel_sigma0=f.pixel_sigma,
                             pose_sigma0=f.pose_sigma, pose_error_frame=f.pose_error_frame)
-            zc = (c.scale - 1.0) / max(c.scale_std, 1e-12)
+            zc = (c.scale - 1.0) / max(c.scale_std * math.sqrt(inflation), 1e-12)
             if not (abs(zc) > SCALE_SIGMAS and abs(c.scale - 1.0) > SCALE_MIN_ERROR):
                 significant, explained_by = False, "intrinsics"
         except ValueError:
@@ -377,32 +422,159 @@ def _scale_check(stage: CornerStage, data, kwargs) -> None:
     stage.scale = {"factor": float(g.scale), "std": float(g.scale_std), "z": float(z),
                    "significant": bool(significant),
                    "explained_by_intrinsics": explained_by == "intrinsics",
-                   "meaning": "the target's true sizes are factor × those declared"}
-    if significant:
-        stage.reasons.append(Reason(
-            "FAIL", "target_size",
-            f"the target's declared size is wrong: the pixels say its sizes are "
-            f"{g.scale:.4g}× those declared (± {g.scale_std:.2g}, {abs(z):.0f}σ from 1) — "
-            f"multiply the square (and marker) sizes of --target by {g.scale:.4g}, or measure "
-            "the printed target"))
+                   "meaning": "the target's true sizes are factor × those declared, or the "
+                              "robot's translations are factor × their true lengths"}
+    if explained_by:
+        return
+    stage.scale_fit = g
+    unit = _unit_mistake(g.scale)
+    if not significant:
+        return
+    f_s, sd = g.scale, g.scale_std
+    span = _span_mm(data)
+    off = abs(f_s - 1.0)
+    if unit is None and off <= SCALE_WARN_MAX:
+        return  # named with both readings by ``_use_scale`` (it knows the answers)
+    what = (f"the sizes look like {unit}" if unit is not None else
+            "a size given wrongly (a digit or a unit off, the square's size for the marker's)"
+            if abs(math.log(f_s)) > math.log(1.5) else
+            f"{100 * off:.3g} % is beyond a print's or a robot's tolerance (≤ "
+            f"{100 * SCALE_WARN_MAX:g} % is answered with both readings): a size given wrongly "
+            "(square for marker size, a ruler misread) or a print scaled to fit the page")
+    robot = ("" if unit is not None or abs(math.log(f_s)) > math.log(1.5) else
+             f"; or the robot's translations are {f_s:.4g}× their true lengths: the pixels "
+             "cannot tell the two apart")
+    stage.reasons.append(Reason(
+        "FAIL", "target_size",
+        f"the target's declared size is wrong: the pixels say its sizes are {f_s:.4g}× those "
+        f"declared (± {sd:.2g}, {abs(z):.0f}σ from 1{robot}) — {what}; "
+        f"multiply the square (and marker) sizes of --target by {f_s:.4g}, or measure the "
+        f"printed target (its outer corners {span:.4g} mm apart as declared)"))
+
+
+def _inflate(fit: CornerFit, factor: float) -> None:
+    if factor > 1.0:
+        fit.covariance = fit.covariance * factor
+        fit.fixed_covariance = fit.fixed_covariance * factor
+        fit.intrinsics_covariance = fit.intrinsics_covariance * factor
+        fit.covariance_full = fit.covariance_full * factor
+        fit.scale_std = fit.scale_std * math.sqrt(factor)
+
+
+def _unit_mistake(factor: float) -> str | None:
+    """The unit mistake a target scale (true / declared) looks like, if any."""
+    for u, name in UNIT_FACTORS.items():
+        if abs(math.log(factor / u)) < math.log(1.0 + UNIT_TOLERANCE):
+            return name
+    return None
+
+
+def _span_mm(data) -> float:
+    """The largest distance (mm) between the target's detected corners, as declared."""
+    P = np.unique(np.round(data.object_points, 9), axis=0)
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    return float(1000 * np.linalg.norm(hi - lo))
+
+
+def scale_readings(X_H, X_F, scale: float, covariance_full: np.ndarray):
+    """The two readings of a target scale s ≠ 1 found with the scale free (X_H, X_F: the fit's,
+    i.e. the reading "the print is s× its declared size"; the other reading, "the robot's
+    translations are s× their true lengths", has the same rotations and every translation
+    divided by s: the whole cell scaled by 1/s shows the same pixels), and the answer that covers
+    both: the midpoint of the translations, with covariance the mean of the readings' plus the
+    spread of their means (a 50/50 mixture: ¼ (t_A − t_B)(t_A − t_B)ᵀ, so each reading is 1σ
+    from the answer along their difference).
+
+    ``covariance_full``: the fit's G×G covariance of [δθ_H, δt_H, δθ_F, δt_F, …, s].
+    Returns {"print": (X_H, X_F), "robot": (X_H, X_F), "answer": (X_H, X_F, cov_H, cov_F)}."""
+    s = float(scale)
+    out = {"print": (X_H.copy(), X_F.copy())}
+    robot, answer, covs = [], [], []
+    C = np.asarray(covariance_full)
+    for i, X in ((0, X_H), (6, X_F)):
+        t = X[:3, 3]
+        X_B, X_M = X.copy(), X.copy()
+        X_B[:3, 3] = t / s
+        X_M[:3, 3] = 0.5 * (t + t / s)
+        robot.append(X_B)
+        answer.append(X_M)
+        # δm = ½(1 + 1/s) δt − t / (2 s²) δs; rotation unchanged.
+        J = np.zeros((6, C.shape[0]))
+        J[:3, i:i + 3] = np.eye(3)
+        J[3:, i + 3:i + 6] = 0.5 * (1.0 + 1.0 / s) * np.eye(3)
+        J[3:, -1] = -t / (2.0 * s * s)
+        d = np.concatenate([np.zeros(3), 0.5 * (t - t / s)])
+        covs.append(J @ C @ J.T + np.outer(d, d))
+    out["robot"] = tuple(robot)
+    out["answer"] = (answer[0], answer[1], covs[0], covs[1])
+    return out
+
+
+def _use_scale(stage: CornerStage, hand: str) -> None:
+    """The answer with the target's scale free (``stage.scale_fit``): both readings in
+    ``stage.scale``, the answer covering both in ``stage.answer``, the fit with the scale free
+    as ``stage.fit`` (the reading that matches the pixels as they are: predictions), and the
+    WARN naming the factor, both readings and what tells them apart."""
+    g = stage.scale_fit
+    if g is None:
+        return
+    stage.fit = g
+    if stage.scale_cv is not None:   # the answer's own left-out prediction and σ factor
+        stage.cv, stage.variance_factor = stage.scale_cv, stage.scale_variance_factor
+    if _unit_mistake(g.scale) is not None or abs(math.log(g.scale)) > math.log(1.5):
+        # A unit or a size given wrongly: no robot is that far off; the answer is the one at
+        # the pixels' scale (and the verdict a FAIL naming the factor).
+        stage.scale["readings"] = {"print": {"meaning": "the target's true sizes are factor × "
+                                             "those declared", hand: g.X_H.tolist()}}
+        return
+    r = scale_readings(g.X_H, g.X_F, g.scale, g.covariance_full)
+    stage.answer = r["answer"]
+    t_p, t_r = r["print"][0][:3, 3], r["robot"][0][:3, 3]
+    apart = float(np.linalg.norm(t_p - t_r))
+    stage.scale["readings"] = {
+        "print": {"meaning": "the target's true sizes are factor × those declared; the robot "
+                             "is right", hand: r["print"][0].tolist()},
+        "robot": {"meaning": "the target is as declared; the robot's translations are factor "
+                             "× their true lengths", hand: r["robot"][0].tolist()},
+        "apart_m": apart,
+        "answer": "the midpoint of the two readings' translations; its σ covers both"}
+    s, sd, z = g.scale, g.scale_std, stage.scale["z"]
+    if not stage.scale["significant"] or abs(s - 1.0) > SCALE_WARN_MAX             or _unit_mistake(s) is not None:
+        return
+    span = _span_mm(stage.data)
+    mm = lambda t: "[" + " ".join(f"{1000 * v:+.1f}" for v in t) + "] mm"
+    stage.reasons.append(Reason(
+        "WARN", "target_scale",
+        f"the target's sizes and the robot's translations disagree by a factor {s:.4g} (± "
+        f"{sd:.2g}, {abs(z):.0f}σ from 1): either the target is printed {s:.4g}× its declared "
+        f"size, or the robot's translations are {s:.4g}× their true lengths (its kinematic "
+        f"model) — the pixels cannot tell the two apart. {hand} translation {mm(t_p)} if the "
+        f"print is off, {mm(t_r)} if the robot is ({1000 * apart:.3g} mm apart); the answer is "
+        f"their midpoint, its σ covers both. To tell them apart, measure the printed target: "
+        f"its outer corners are {span:.5g} mm apart as declared, {span * s:.5g} mm if the print "
+        f"is off (then multiply the sizes of --target by {s:.5g}); if it is as declared, the "
+        f"robot's translations are {s:.4g}× long (check its kinematic model, or move it a "
+        f"measured distance)"))
 
 
 def _intrinsics_check(stage: CornerStage, data, kwargs, tried) -> None:
     """Given intrinsics against the images: refined where the images determine them, do they
     move beyond their σ, and does that move the hand-eye result beyond its σ?"""
     f = stage.fit
+    fs = stage.scale_fit is not None     # the scale free in the answer: in these fits too
     if stage.model == "none":
         # The user's intrinsics held: try them refined, and say so when they do not fit.
         try:
-            alt = fit_corners(data, f.X_H, f.X_F, f.intrinsics, "k1k2",
-                              pixel_sigma0=f.pixel_sigma, pose_sigma0=f.pose_sigma,
-                              pose_error_frame=f.pose_error_frame)
-            cv_alt = cross_validate(data, alt)
+            alt = fit_corners(data, f.X_H, f.X_F, f.intrinsics, "k1k2", free_scale=fs,
+                              scale0=f.scale, pixel_sigma0=f.pixel_sigma,
+                              pose_sigma0=f.pose_sigma, pose_error_frame=f.pose_error_frame)
+            cv_alt = cross_validate(data, alt, free_scale=fs)
         except ValueError:
             return
         held, other = f, alt
         level, how = "FAIL", ("--refine-intrinsics auto (or recalibrate the camera)")
-        better = cv_alt["rms_px"] < 0.9 * stage.cv["rms_px"]
+        own = stage.scale_cv if fs and stage.scale_cv is not None else stage.cv
+        better = cv_alt["rms_px"] < 0.9 * own["rms_px"]
         if not better:
             return
     else:
@@ -411,6 +583,7 @@ def _intrinsics_check(stage: CornerStage, data, kwargs, tried) -> None:
         if held is None:
             try:
                 held = fit_corners(data, f.X_H, f.X_F, stage.intrinsics_given, "none",
+                                   free_scale=fs, scale0=f.scale,
                                    pixel_sigma0=f.pixel_sigma, pose_sigma0=f.pose_sigma,
                                    pose_error_frame=f.pose_error_frame)
             except ValueError:
@@ -468,9 +641,9 @@ def _pixel_checks(stage: CornerStage, max_noise) -> None:
                                     f"{out} of {K} images do not fit the others (corner-level)"))
 
 
-#: Pose-level reasons the pixel-level checks supersede: the scale and intrinsics readings, and
-#: the self-calibrated intrinsics' warning (their uncertainty is in the joint fit).
-SUPERSEDED = ("camera_scale", "self_calibrated_intrinsics")
+#: Pose-level reasons the pixel-level checks supersede: the scale and focal-length readings of
+#: the poses, and the self-calibrated intrinsics' warning (their uncertainty is in the joint fit).
+SUPERSEDED = ("camera_scale", "camera_focal", "self_calibrated_intrinsics")
 #: With a wrong target size or intrinsics, these reasons are its consequences, not other causes.
 CONSEQUENCES = ("residuals", "sigma", "held_out", "camera_scale", "robot_millimetres",
                 "camera_millimetres", "implausible_result", "outliers", "weak", "other_mode",
@@ -482,16 +655,24 @@ def _apply(result, stage: CornerStage, robot_accuracy) -> None:
     f = stage.fit
     result.fit.X_H, result.fit.X_F = f.X_H.copy(), f.X_F.copy()
     cov = f.covariance.copy()
+    fixed_cov = f.fixed_covariance.copy()
+    if stage.answer is not None:     # the target's scale free: the answer covers both readings
+        result.fit.X_H, result.fit.X_F = stage.answer[0].copy(), stage.answer[1].copy()
+        cov, fixed_cov = stage.answer[2].copy(), stage.answer[3].copy()
     if robot_accuracy is not None and any(robot_accuracy):
         cov = cov + robot_error_covariance(f.X_H, robot_accuracy)
     result.fit.covariance = cov
-    result.fit.fixed_covariance = f.fixed_covariance.copy()
+    result.fit.fixed_covariance = fixed_cov
     reasons = [r for r in result.verdict.reasons if r.code not in SUPERSEDED]
     named = [r for r in stage.reasons if r.code in ("target_size", "intrinsics")]
-    if named and not any(r.code == "pixel_residuals" for r in stage.reasons):
+    scaled = any(r.code == "target_scale" for r in stage.reasons)
+    if (named or scaled) and not any(r.code == "pixel_residuals" for r in stage.reasons):
         # The pose-level checks ran on poses measured with the wrong size or intrinsics: what
-        # they flag are consequences of the cause the pixels name.
-        reasons = [r for r in reasons if r.code not in CONSEQUENCES] + named[:1]
+        # they flag are consequences of the cause the pixels name. (A scale answered with both
+        # readings is in the fit the pixel-level checks judged: their reasons all stand.)
+        reasons = [r for r in reasons if r.code not in CONSEQUENCES] + (
+            named[:1] if named and named[0].code == "target_size" or not scaled
+            else stage.reasons)
     else:
         reasons += stage.reasons
     result.warnings = [w for w in result.warnings

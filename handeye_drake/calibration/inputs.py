@@ -481,8 +481,11 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
                                     drawings_dir)
     _require_found(records, found, target_spec, "--images")
     keep = [k for k, _ in found]
+    # Detected poses are at the declared target size: one far off (a square given in inches
+    # read as metres) is for the corner-level fit to measure and name, not a pose file's units.
     camera = pose_stream(np.array([d.X_CT for _, d in found]), None,
-                         source=f"images ({len(paths)})", lines=[k + 1 for k in keep])
+                         source=f"images ({len(paths)})", lines=[k + 1 for k in keep],
+                         max_translation=None)
     robot_kept = PoseStream(robot.poses[keep], None, robot.source,
                             tuple(int(robot.lines[k]) for k in keep), robot.sha256)
     inputs = {"images": {"count": len(paths), "detected": len(keep), "target": str(target_spec),
@@ -589,7 +592,7 @@ def bag_image_streams(path, robot_frames, image_topic: str, target_spec, intrins
     _require_found(records, kept, target_spec, f"--image-topic {image_topic}")
     camera = pose_stream(np.array([d.X_CT for _, d in kept]),
                          [records[k].stamp for k, _ in kept], source=f"{path}[{image_topic}]",
-                         lines=[records[k].message for k, _ in kept])
+                         lines=[records[k].message for k, _ in kept], max_translation=None)
     inputs = {"bag": {"path": str(path), "robot_frames": list(frames),
                       "camera": f"{image_topic} (target detected in the images)",
                       "robot_samples": len(data.robot), "camera_samples": len(camera)},

@@ -130,9 +130,12 @@ def _section(title: str, anchor: str, build) -> str:
 
 # ------------------------------------------------------------------------------- the numbers
 def _predicted_X_CT(result) -> np.ndarray:
-    """(M, 4, 4) X_CT of every aligned sample through the result: X_H⁻¹ · X_R⁻¹ · X_F."""
+    """(M, 4, 4) X_CT of every aligned sample through the result: X_H⁻¹ · X_R⁻¹ · X_F (for a
+    corner-level answer the fit's own chain, at the target scale it found: the answer's midpoint
+    between the scale's two readings is not one the pixels show)."""
     X_R = np.asarray(result.aligned.X_BE, float)
-    return inverse(result.fit.X_H)[None] @ np.linalg.inv(X_R) @ result.fit.X_F[None]
+    fit = result.corners.fit if result.corners is not None else result.fit
+    return inverse(fit.X_H)[None] @ np.linalg.inv(X_R) @ fit.X_F[None]
 
 
 def _pose_residuals(result):
@@ -776,7 +779,9 @@ def _checks_html(result) -> str:
 
 #: Names of the alternatives whose description is only set when they apply.
 _ALTERNATIVE_NAMES = {"camera_scale": "the camera's translations at another scale (a wrong "
-                                      "target size, or a target printed at another scale)"}
+                                      "target size, or a target printed at another scale)",
+                      "camera_focal": "the camera's depths at another scale (a wrong focal "
+                                      "length in the intrinsics that measured the poses)"}
 
 
 def _alternatives_html(result) -> str:
