@@ -12,7 +12,8 @@ options) -> CalibrationResult`` (``api``), and each stage in the order the data 
 - ``checks``: the verdict (OK / WARN / FAIL) with the usual mistakes tried as alternatives;
   ``changepoint``: a move of the target or of the camera during the recording;
 - ``online``: the replay through the on-line filters; ``task_space``: σ where a user acts;
-- ``report``: the text summary and ``calibration.json``.
+- ``report``: the text summary and ``calibration.json``; ``compare``: two calibrations of one
+  mount (consistent, or the mount moved).
 
 Nothing here imports ``handeye_drake.apps`` or Drake; ``handeye-drake calibrate`` is this
 library with a command line.
@@ -21,12 +22,13 @@ library with a command line.
 from .api import (DEFAULT_ROBOT_ACCURACY, CalibrationOptions, calibrate, calibrate_files,
                   read_inputs, solve)
 from .checks import Reason, Verdict
+from .compare import Comparison, compare
 from .corners import CornerStage, calibrate_images, refine_with_corners
 from .inputs import Streams, bag_image_streams, bag_streams, file_streams, image_streams
 from .pipeline import CalibrationResult, calibrate_streams
 from .report import table, to_dict, write_json
 
-__all__ = ["CalibrationOptions", "CalibrationResult", "CornerStage", "DEFAULT_ROBOT_ACCURACY",
+__all__ = ["CalibrationOptions", "CalibrationResult", "Comparison", "CornerStage", "DEFAULT_ROBOT_ACCURACY",
            "Reason", "Streams", "Verdict", "bag_image_streams", "bag_streams", "calibrate",
-           "calibrate_files", "calibrate_images", "calibrate_streams", "file_streams", "image_streams",
+           "calibrate_files", "calibrate_images", "calibrate_streams", "compare", "file_streams", "image_streams",
            "read_inputs", "refine_with_corners", "solve", "table", "to_dict", "write_json"]
