@@ -261,9 +261,9 @@ def _weighting(data, fit, cv, seed):
     arm whose error repeats with the joint angles (a smooth error field, not independent draws)
     or with partly seen boards, that weighting can predict new images worse than equal weights
     (``benchmarks/loo_vs_bundle.py``). Which of the two predicts better is what the left-out
-    images say, as for the intrinsics model. The σ stays the per-image model's (with the
-    repeating robot error added in ``_apply``): the plain bundle's own, robot taken as exact,
-    would be far too small. The noise levels, per-image errors and the images and corners the
+    images say, as for the intrinsics model. The σ is the per-image model's (with the
+    repeating robot error added in ``_apply``) widened by the two answers' difference: the plain
+    bundle's own, robot taken as exact, would be far too small. The noise levels, per-image errors and the images and corners the
     per-image model rejected stay as its own (the checks judge the data by them)."""
     if data.num_images < 4 or data.num_images > LOO_MAX_IMAGES:
         return fit, cv, ""
@@ -292,9 +292,18 @@ def _weighting(data, fit, cv, seed):
     K = data.num_images
     img_rms = np.sqrt(np.bincount(data.image, n2 * ok, K)
                       / np.maximum(np.bincount(data.image, ok.astype(float), K), 1))
+    # The two weightings of the same data disagree by d: the answer is uncertain by at least
+    # that (with errors that repeat, the pixel-best answer can sit further from the truth).
+    d_H, d_F = _tangent(plain.X_H, fit.X_H), _tangent(plain.X_F, fit.X_F)
+    full = fit.covariance_full.copy()
+    full[:6, :6] += np.outer(d_H, d_H)
+    full[6:12, 6:12] += np.outer(d_F, d_F)
     chosen = dataclasses.replace(fit, X_H=plain.X_H, X_F=plain.X_F, intrinsics=plain.intrinsics,
                                  scale=plain.scale, residuals=r, image_rms_px=img_rms,
-                                 rms_px=float(math.sqrt(np.mean(n2[ok]))))
+                                 rms_px=float(math.sqrt(np.mean(n2[ok]))),
+                                 covariance=fit.covariance + np.outer(d_H, d_H),
+                                 fixed_covariance=fit.fixed_covariance + np.outer(d_F, d_F),
+                                 covariance_full=full)
     # The predictive χ² stays the per-image model's (the plain bundle's noise model has no robot
     # error, so its χ² says nothing about σ).
     new_cv = dict(cv, rms_px=cv_plain["rms_px"], image_rms_px=cv_plain["image_rms_px"],
