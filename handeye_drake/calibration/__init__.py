@@ -14,7 +14,8 @@ options) -> CalibrationResult`` (``api``), and each stage in the order the data 
 - ``session``: ``CalibrationSession``, a live calibration — samples one by one, the next pose,
   stop when σ reaches a target with verdict OK;
 - ``online``: the replay through the on-line filters; ``task_space``: σ where a user acts;
-- ``report``: the text summary and ``calibration.json``.
+- ``report``: the text summary and ``calibration.json``; ``compare``: two calibrations of one
+  mount (consistent, or the mount moved).
 
 Nothing here imports ``handeye_drake.apps`` or Drake; ``handeye-drake calibrate`` is this
 library with a command line.
@@ -23,6 +24,7 @@ library with a command line.
 from .api import (DEFAULT_ROBOT_ACCURACY, CalibrationOptions, calibrate, calibrate_files,
                   read_inputs, solve)
 from .checks import Reason, Verdict
+from .compare import Comparison, compare
 from .corners import CornerStage, calibrate_images, refine_with_corners
 from .inputs import Streams, bag_image_streams, bag_streams, file_streams, image_streams
 from .pipeline import CalibrationResult, calibrate_streams
@@ -30,8 +32,8 @@ from .report import table, to_dict, write_json
 from .session import CalibrationSession, CandidatePoses, SessionStep
 
 __all__ = ["CalibrationOptions", "CalibrationResult", "CalibrationSession", "CandidatePoses",
-           "CornerStage", "DEFAULT_ROBOT_ACCURACY",
+           "Comparison", "CornerStage", "DEFAULT_ROBOT_ACCURACY",
            "Reason", "Streams", "Verdict", "bag_image_streams", "bag_streams", "calibrate",
-           "calibrate_files", "calibrate_images", "calibrate_streams", "file_streams", "image_streams",
-           "read_inputs", "refine_with_corners", "SessionStep", "solve", "table", "to_dict",
-           "write_json"]
+           "calibrate_files", "calibrate_images", "calibrate_streams", "compare", "file_streams",
+           "image_streams", "read_inputs", "refine_with_corners", "SessionStep", "solve", "table",
+           "to_dict", "write_json"]

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, CornerData,
-                                        CornerFit, cross_validate, fit_corners,
-                                        intrinsics_matrix, intrinsics_vector,
-                                        select_intrinsics_model)
+from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, LOO_MAX_IMAGES,
+                                        POSE_SIGMA_FLOOR, CornerData, CornerFit,
+                                        cross_validate, fit_corners, intrinsics_matrix,
+                                        intrinsics_vector, predict, select_intrinsics_model)
 from ..estimation.se3 import rotation_log
 from ..estimation.consistency import with_scaled_translations
 from .checks import Reason, Verdict, _quick_fit
@@ -73,6 +73,8 @@ class CornerStage:
     corner_image: np.ndarray = None      # (N,) image of each corner
     #: Factor on the covariances from the left-out images' prediction errors (≥ 1).
     variance_factor: float = 1.0
+    #: The robot error that repeats over the recording, in the σ (``systematic_robot_level``).
+    robot_level: dict = field(default_factory=dict)
     reasons: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     #: The fit with the target's scale free (``_scale_check``), and the answer from it that
@@ -82,6 +84,9 @@ class CornerStage:
     scale_variance_factor: float = 1.0
     answer: tuple = None
     data: CornerData = None
+    #: The plain corner bundle predicted left-out images better than the per-image robot-error
+    #: weights (``_weighting``): the answer with the scale free is chosen the same way.
+    plain_bundle: bool = False
 
     def to_dict(self) -> dict:
         f = self.fit
@@ -108,6 +113,7 @@ class CornerStage:
                                      "rms_px": self.cv["rms_px"],
                                      "chi2_per_dof": self.cv.get("chi2_per_dof"),
                                      "covariance_factor": self.variance_factor},
+                "systematic_robot_error": self.robot_level or None,
                 "models": self.models, "scale": self.scale,
                 "per_image": [{"line": int(line), "used": bool(u), "rms_px": float(rms),
                                "predicted_rms_px": None if not np.isfinite(p) else float(p),
@@ -148,6 +154,11 @@ class CornerStage:
                    f"(χ²/dof {self.cv.get('chi2_per_dof', math.nan):.2f}"
                    + (f": σ widened ×{math.sqrt(self.variance_factor):.2f})"
                       if self.variance_factor > 1 else ")"))
+        lv = self.robot_level
+        if lv and (lv["rotation_deg"] or lv["translation_m"]):
+            out.append(f"σ holds a robot error repeating over the recording of "
+                       f"{lv['rotation_deg']:.3g}° / {1000 * lv['translation_m']:.3g} mm per axis "
+                       "(the larger of --robot-accuracy and the images' per-image pose error)")
         row = ", ".join(f"{m} {o['cv_rms_px']:.3f}" for m, o in self.models.items()
                         if o.get("cv_rms_px") is not None)
         if row:
@@ -252,6 +263,11 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         why = "--refine-intrinsics " + refine
         if intrinsics_source != "given" and chosen == "none":
             why += " (intrinsics calibrated from the same images: their uncertainty is not in σ)"
+    weighting = ""
+    if scale0 == 1.0:
+        fit, cv, weighting = _weighting(data, fit, cv, result.seed)
+        if weighting:
+            why += "; " + weighting
     # The images left out must be predicted as well as the noise model says (whitened by the
     # predictive covariance of a new image); when they are worse, every σ is widened by the
     # factor they show (an a-posteriori variance factor, never a narrowing).
@@ -259,7 +275,8 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
     inflation = float(factor) if np.isfinite(factor) and factor > 1.0 else 1.0
     _inflate(fit, inflation)
     stage = CornerStage(fit, refine, chosen, why, models, cv, {}, v0, intrinsics_source,
-                        X_H0.copy(), lines, data.image, inflation, data=data)
+                        X_H0.copy(), lines, data.image, inflation, data=data,
+                        plain_bundle=bool(weighting))
     _scale_check(stage, data, kwargs, result.seed)
     # The target's scale is an unknown of the answer: the checks below judge the fit with it.
     _use_scale(stage, "X_EC" if result.mode == "eye_in_hand" else "X_BC")
@@ -267,8 +284,70 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
         _intrinsics_check(stage, data, kwargs, tried if refine == "auto" and
                           stage.scale_fit is None else None)
     _pixel_checks(stage, result.settings["max_noise"])
-    _apply(result, stage, robot_accuracy)
+    _apply(result, stage, robot_accuracy, data)
     return stage
+
+
+def _weighting(data, fit, cv, seed):
+    """The answer of the per-image robot-error model, or of a plain corner bundle (every corner
+    of every image alike, the robot poses as exact, the same intrinsics model) when that
+    predicts left-out images better: (fit, cross-validation, note or "").
+
+    The per-image model weighs each image by how well its pose is known under Σ_e; on a real
+    arm whose error repeats with the joint angles (a smooth error field, not independent draws)
+    or with partly seen boards, that weighting can predict new images worse than equal weights
+    (``benchmarks/loo_vs_bundle.py``). Which of the two predicts better is what the left-out
+    images say, as for the intrinsics model. The σ is the per-image model's (with the
+    repeating robot error added in ``_apply``) widened by the two answers' difference: the plain
+    bundle's own, robot taken as exact, would be far too small. The noise levels, per-image errors and the images and corners the
+    per-image model rejected stay as its own (the checks judge the data by them)."""
+    if data.num_images < 4 or data.num_images > LOO_MAX_IMAGES:
+        return fit, cv, ""
+    floor = np.repeat(POSE_SIGMA_FLOOR, 3)
+    # Both judged on every corner of every image, as a user's own left-out test counts them:
+    # the per-image model without the images and corners it rejected, the plain bundle on all.
+    try:
+        cv_model = cross_validate(data, fit, every_corner=True)
+        plain = fit_corners(data, fit.X_H, fit.X_F, fit.intrinsics, fit.model,
+                            pixel_sigma0=fit.pixel_sigma, pose_sigma0=floor,
+                            estimate_noise=False, robust=False, scale0=fit.scale,
+                            pose_error_frame=fit.pose_error_frame)
+        cv_plain = cross_validate(data, plain, every_corner=True)
+    except ValueError:
+        return fit, cv, ""
+    if not cv_plain["rms_px"] < cv_model["rms_px"]:
+        return fit, cv, ""
+    # The plain bundle's poses and intrinsics, its residuals (no per-image error) on every corner.
+    uv = np.empty_like(data.image_points)
+    for k in range(data.num_images):
+        sel = data.image == k
+        uv[sel] = predict(plain, data.X_R[k], data.object_points[sel])
+    r = data.image_points - uv
+    ok = fit.corner_used & fit.image_used[data.image]
+    n2 = np.sum(r ** 2, axis=1)
+    K = data.num_images
+    img_rms = np.sqrt(np.bincount(data.image, n2 * ok, K)
+                      / np.maximum(np.bincount(data.image, ok.astype(float), K), 1))
+    # The two weightings of the same data disagree by d: the answer is uncertain by at least
+    # that (with errors that repeat, the pixel-best answer can sit further from the truth).
+    d_H, d_F = _tangent(plain.X_H, fit.X_H), _tangent(plain.X_F, fit.X_F)
+    full = fit.covariance_full.copy()
+    full[:6, :6] += np.outer(d_H, d_H)
+    full[6:12, 6:12] += np.outer(d_F, d_F)
+    chosen = dataclasses.replace(fit, X_H=plain.X_H, X_F=plain.X_F, intrinsics=plain.intrinsics,
+                                 scale=plain.scale, residuals=r, image_rms_px=img_rms,
+                                 rms_px=float(math.sqrt(np.mean(n2[ok]))),
+                                 covariance=fit.covariance + np.outer(d_H, d_H),
+                                 fixed_covariance=fit.fixed_covariance + np.outer(d_F, d_F),
+                                 covariance_full=full)
+    # The predictive χ² stays the per-image model's (the plain bundle's noise model has no robot
+    # error, so its χ² says nothing about σ).
+    new_cv = dict(cv, rms_px=cv_plain["rms_px"], image_rms_px=cv_plain["image_rms_px"],
+                  method=cv_plain["method"], weighted_rms_px=cv_model["rms_px"])
+    return chosen, new_cv, (f"every corner of every image weighted alike (robot poses as "
+                            f"exact): left-out "
+                            f"images predicted {cv_plain['rms_px']:.3f} px, with the per-image "
+                            f"robot-error weights {cv_model['rms_px']:.3f} px")
 
 
 #: Target scales tried when the pose-level fit finds no answer at the declared size (a square of
@@ -404,6 +483,10 @@ def _scale_check(stage: CornerStage, data, kwargs, seed: int = 0) -> None:
         inflation = stage.variance_factor
     _inflate(g, inflation)
     stage.scale_variance_factor = inflation
+    if stage.plain_bundle and stage.scale_cv is not None:
+        # At the declared size the plain bundle predicted left-out images better; the answer at
+        # the fitted scale is held to the same test (its σ stays the weighted fit's, widened).
+        g, stage.scale_cv, _ = _weighting(data, g, stage.scale_cv, seed)
     z = (g.scale - 1.0) / max(g.scale_std, 1e-12)
     significant = abs(z) > SCALE_SIGMAS and abs(g.scale - 1.0) > SCALE_MIN_ERROR
     explained_by = ""
@@ -650,7 +733,37 @@ CONSEQUENCES = ("residuals", "sigma", "held_out", "camera_scale", "robot_millime
                 "swapped_streams", "intrinsics", "image_outliers", "pixel_residuals")
 
 
-def _apply(result, stage: CornerStage, robot_accuracy) -> None:
+def systematic_robot_level(fit, robot_accuracy=None, depth: float = 0.0) -> tuple[float, float]:
+    """(deg, m) per axis of the robot error that repeats over the recording, for the σ: the
+    larger of ``robot_accuracy`` (given) and what the images' per-image pose error shows.
+
+    A real arm's pose error at the millimetre level is kinematic: it repeats with the joint
+    angles, so over one recording it does not average out as the per-image model assumes, and
+    its constant and smooth parts are taken up by the hand-eye and fixed poses, unseen in any
+    residual. The images' scatter measures its size, but only what is left of it: and the
+    pixels tell a rotation of an image's pose from a translation only through perspective (a
+    turn about x by δ moves the board like a shift along y by δ · ``depth``, the distance (m)
+    from the camera to the target). So the level takes each part as large as both together,
+    σ_r² + (σ_t / depth)² and σ_t² + (σ_r · depth)², constant over the recording
+    (``pipeline.robot_error_covariance``). With independent per-image errors this is
+    conservative by about √(images); with errors that repeat it keeps the truth inside the σ
+    (``tests/calibration/test_compare.py``, ``benchmarks/loo_vs_bundle.py`` prints NEES)."""
+    ps = np.asarray(fit.pose_sigma, float)
+    sr = math.sqrt(float(np.mean(ps[:3] ** 2)))
+    st = math.sqrt(float(np.mean(ps[3:] ** 2)))
+    est_r = math.hypot(sr, st / depth) if depth > 0 else sr
+    est_t = math.hypot(st, sr * depth)
+    given = (0.0, 0.0) if not robot_accuracy else tuple(float(v) for v in robot_accuracy)
+    return max(given[0], math.degrees(est_r)), max(given[1], est_t)
+
+
+def _target_distance(fit, data) -> float:
+    """Median distance (m) from the camera to the target's origin over the images used."""
+    X_CT = fit.X_CT(data.X_R[fit.image_used])
+    return float(np.median(np.linalg.norm(X_CT[:, :3, 3], axis=1))) if len(X_CT) else 0.0
+
+
+def _apply(result, stage: CornerStage, robot_accuracy, data=None) -> None:
     """The corner-level answer and verdict into the ``CalibrationResult``."""
     f = stage.fit
     result.fit.X_H, result.fit.X_F = f.X_H.copy(), f.X_F.copy()
@@ -659,8 +772,13 @@ def _apply(result, stage: CornerStage, robot_accuracy) -> None:
     if stage.answer is not None:     # the target's scale free: the answer covers both readings
         result.fit.X_H, result.fit.X_F = stage.answer[0].copy(), stage.answer[1].copy()
         cov, fixed_cov = stage.answer[2].copy(), stage.answer[3].copy()
-    if robot_accuracy is not None and any(robot_accuracy):
-        cov = cov + robot_error_covariance(f.X_H, robot_accuracy)
+    level = systematic_robot_level(f, robot_accuracy,
+                                   0.0 if data is None else _target_distance(f, data))
+    stage.robot_level = {"rotation_deg": level[0], "translation_m": level[1],
+                         "given": None if not robot_accuracy else [float(v) for v in
+                                                                   robot_accuracy]}
+    if any(level):
+        cov = cov + robot_error_covariance(f.X_H, level)
     result.fit.covariance = cov
     result.fit.fixed_covariance = fixed_cov
     reasons = [r for r in result.verdict.reasons if r.code not in SUPERSEDED]

@@ -118,6 +118,8 @@ def to_dict(result) -> dict:
             "translation_m": r.settings["robot_accuracy"][1]},
         "noise_per_axis": _noise_dict(fit),
         "held_out_test": _held_out_dict(r),
+        "comparison": None if getattr(r, "comparison", None) is None else
+        r.comparison.to_dict(),
         "time_offset": {
             "mode": r.time_offset_mode, "value_s": a.time_offset,
             "convention": "camera stamp - robot time of the same instant",

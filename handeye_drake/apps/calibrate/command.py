@@ -246,6 +246,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="with --camera-urdf (needed) or --mount-offset: the optical frame's "
                           "name, e.g. camera_color_optical_frame (default with --mount-offset: "
                           "camera_optical_frame)")
+    out.add_argument("--compare", default=None, metavar="OTHER/calibration.json",
+                     help="compare the answer with another calibration of the same mount (its "
+                          "calibration.json): the difference, its σ from both answers' "
+                          "covariances, and whether they agree or the mount moved")
     out.add_argument("--out", default=DEFAULT_OUT, metavar="DIR",
                      help=f"output directory (default {DEFAULT_OUT}); an existing one must be "
                           "empty or hold this command's earlier output")
@@ -300,6 +304,9 @@ def run_calibrate_command(args) -> int:
     if args.image_topic and not args.bag:
         raise ValueError("--image-topic: reads the images of a ROS bag; give --bag PATH")
     mode = args.mode.replace("-", "_")
+    if args.compare is not None:
+        from ...calibration.compare import read_answer
+        read_answer(args.compare, "--compare")   # a bad file stops before any work
     child_frame, mount_offset, optical_frame, mount_note = camera_mount_from_args(args)
     out = prepare_output_dir(args.out, "calibrate", args.force)
     robot_scale, camera_scale = _scales(args)
@@ -316,6 +323,9 @@ def run_calibrate_command(args) -> int:
         camera_quaternion_order=args.camera_quaternion_order,
         robot_format=args.robot_format, camera_format=args.camera_format, drawings_dir=out)
     result = solve(streams, options_from_args(args))
+    if args.compare is not None:
+        from ...calibration.compare import compare
+        result.comparison = compare(result, args.compare, "--compare")
     intrinsics_used = result.intrinsics
     written = [write_json(result, out.path("calibration.json"))]
     if result.online is not None and any(len(o.times) for o in result.online):
@@ -341,6 +351,8 @@ def run_calibrate_command(args) -> int:
     if streams.images:
         print(_image_table(streams))
     print(table(result))
+    if args.compare is not None:
+        print("compared with " + result.comparison.text)
     if args.export and result.verdict.status == "FAIL":
         print("no export: the verdict is FAIL")
     elif args.export:
