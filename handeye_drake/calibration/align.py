@@ -218,6 +218,11 @@ class TimeOffsetEstimate:
     residual_rms_deg: float
 
 
+#: Levels of the wide search (each narrows the range about its best offset): a bound, never a
+#: recursion without end.
+MAX_WIDE_LEVELS = 6
+
+
 def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
     """Rotation angles of R0ᵀ R1 (rad), from the trace (clipped): fast, vectorized."""
     c = (np.einsum("kij,kij->k", R0, R1) - 1.0) / 2.0
@@ -225,7 +230,7 @@ def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
 
 
 def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, step,
-                 units: str) -> TimeOffsetEstimate:
+                 units: str, depth: int = 0) -> TimeOffsetEstimate:
     """``estimate_time_offset`` when ±R leaves fewer than half of the camera samples inside the
     robot's span for every offset: each grid offset is scored on the camera samples its own
     robot instants cover (at least half of those covered at offset 0, so offset 0 always
@@ -234,6 +239,7 @@ def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, 
     t0, t1 = interp.span
     tc = camera.timestamps
     need = max(8, int(np.count_nonzero((tc >= t0) & (tc <= t1))) // 2)
+    asked = step
     if step is None:
         periods = [_median_period(robot.timestamps), _median_period(tc)]
         step = min(p for p in periods if math.isfinite(p)) / 4.0
@@ -264,14 +270,18 @@ def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, 
     # (the ordinary search's condition), at least 4 grid steps.
     margin = np.minimum(tc - best - t0, t1 - (tc - best))
     keeps = float(np.sort(margin)[::-1][need - 1])
+    # The refinement uses the step asked for (the grid's may be coarser, at most 2001 points):
+    # each level narrows the range by the grid's ratio, so this ends in a few levels (a loop
+    # on the same coarse step never would).
     near = estimate_time_offset(robot, shifted, min(R, max(keeps, 4 * (grid[1] - grid[0]))),
-                                lags, step)
+                                lags, asked, _depth=depth + 1)
     return TimeOffsetEstimate(best + near.offset, R, near.grid + best, near.cost,
                               near.num_motions, near.residual_rms_deg)
 
 
 def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: float = 0.5,
-                         lags=(1, 2, 4, 8), step: float | None = None) -> TimeOffsetEstimate:
+                         lags=(1, 2, 4, 8), step: float | None = None, *,
+                         _depth: int = 0) -> TimeOffsetEstimate:
     """Estimates the constant offset (camera stamp − robot time) in [−search_range, search_range].
 
     For each lag L in ``lags`` the rotation angle θ_A of the camera motion between camera samples
@@ -320,7 +330,12 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     if len(ok) < max(4, inside // 2) and inside >= 8:
         # A range wide for the recording's length: every candidate offset on its own overlap
         # first, then the usual search in a narrow range about the best one.
-        return _wide_search(robot, camera, interp, R, lags, step, units)
+        if _depth >= MAX_WIDE_LEVELS:
+            raise UnobservableTimeOffset(
+                f"time offset estimation: ±{R:g} s is too wide for the recording's length "
+                f"({t1 - t0:.4g} s of robot poses) even after {_depth} narrowings — reduce "
+                f"--time-offset-range{units}")
+        return _wide_search(robot, camera, interp, R, lags, step, units, _depth)
     if len(ok) < 4:
         raise UnobservableTimeOffset(
             f"time offset estimation: only {len(ok)} camera samples of {camera.source} stay "
