@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .corners import REFINE_CHOICES, calibrate_images
+from . import pairing
 from .euler_check import check_robot_euler, explain_failure
 from .inputs import (DEFAULT_MAX_IMAGES, Streams, bag_image_streams, bag_streams, file_streams,
                      image_streams)
@@ -158,8 +159,11 @@ def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()
             result = calibrate_streams(streams.robot, streams.camera, **settings)
             intrinsics = streams.intrinsics
     except ValueError as e:
-        raise explain_failure(e, streams, euler[0], euler[1], euler[2], settings) from None
+        explained = explain_failure(e, streams, euler[0], euler[1], euler[2], settings)
+        raise (pairing.explain_failure(e, streams) if explained is e else explained) from None
     check_robot_euler(result, streams, *euler)
+    pairing.check_pairing(result, streams)
+    pairing.check_resolution(result, streams)
     result.inputs = streams.inputs
     if streams.images:
         result.inputs["images"]["per_image"] = [dataclasses.asdict(r) for r in streams.images]
