@@ -106,6 +106,11 @@ def resolution_hint(intrinsics, width: int | None = None, height: int | None = N
     s = math.sqrt(sx * sy)
     if abs(math.log(s)) < math.log(RESOLUTION_FACTOR):
         return ""
+    # Resolutions differ by simple ratios (2, 3/2, 4/3, ...): the nearest within 3 %.
+    from fractions import Fraction
+    nice = Fraction(s).limit_denominator(4)
+    if nice > 0 and abs(float(nice) / s - 1.0) < 0.03:
+        s = float(nice)
     return (f"intrinsics of another image resolution: their principal point "
             f"({intrinsics.u0:.1f}, {intrinsics.v0:.1f}) is the centre of a "
             f"{round(w * s)}×{round(h * s)} image, not of these {w}×{h} ones — scale fx, fy, "
@@ -120,7 +125,7 @@ def check_pairing(result, streams) -> None:
     found = pairing_shift(streams.robot.poses, streams.camera.poses)
     if found is None:
         return
-    reason = Reason("FAIL", "pairing_shift", shift_message(*found, bool(streams.images)))
+    reason = Reason("FAIL", "pairing_shift", shift_message(*found, bool(streams.detections or streams.images)))
     keep = [r for r in result.verdict.reasons if r.code not in CONSEQUENCES]
     result.verdict = type(result.verdict)("FAIL", [reason] + keep)
 
@@ -129,7 +134,7 @@ def check_resolution(result, streams) -> None:
     """Intrinsics of another resolution, when the principal point says so: named in the
     verdict's intrinsics reason (or as one, a WARN at least: the answer rests on pixels measured
     with them)."""
-    if not streams.images or streams.intrinsics_source != "given":
+    if not (streams.detections or streams.images) or streams.intrinsics_source != "given":
         return
     hint = resolution_hint(streams.intrinsics)
     if not hint:
@@ -161,9 +166,9 @@ def explain_failure(error: ValueError, streams) -> ValueError:
         found = pairing_shift(streams.robot.poses, streams.camera.poses)
         if found is not None:
             return ValueError(f"no hand-eye transform fits the samples as paired; likely "
-                              f"cause: {shift_message(*found, bool(streams.images))} (as "
+                              f"cause: {shift_message(*found, bool(streams.detections or streams.images))} (as "
                               f"paired: {error})")
-    if streams.images and streams.intrinsics_source == "given":
+    if (streams.detections or streams.images) and streams.intrinsics_source == "given":
         hint = resolution_hint(streams.intrinsics)
         if hint:
             return ValueError(f"no hand-eye transform fits the camera poses; likely cause: "
