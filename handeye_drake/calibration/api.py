@@ -90,8 +90,8 @@ class CalibrationOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
                 raise ValueError(f"{name}: expected a number ≥ 0, got {v!r}")
-        # Every number checked here, where it is given: a negative bound or range would
-        # otherwise pass through to a verdict that can never trip (or always does).
+        # A negative bound would pass through to a verdict that always trips (a nan offset to
+        # one that never pairs): checked here, where it is given.
         def number(name, low, high, low_open, allow_none=False):
             v = getattr(self, name)
             if v is None and allow_none:
@@ -104,17 +104,11 @@ class CalibrationOptions:
                     + (f" and ≤ {high:g}" if math.isfinite(high) else "")
                 raise ValueError(f"{name}: expected a finite number{bound}"
                                  + (" (or None)" if allow_none else "") + f", got {v!r}")
+        # (The others are checked, with their own messages, where they are used: the pair
+        # selection, the hold-out, the time offset's range, the on-line replay.)
         number("max_hand_eye_distance_m", 0.0, math.inf, True, allow_none=True)
-        number("time_offset_range_s", 0.0, math.inf, True)
-        number("min_rotation_deg", 0.0, 180.0, False)
-        number("max_pair_angle_deg", 0.0, 180.0, True)
-        number("holdout_fraction", 0.0, 0.5, False)
-        number("online_step_deg", 0.0, 180.0, True)
         if self.time_offset_s not in (None, "auto"):
             number("time_offset_s", -math.inf, math.inf, False)   # or "auto"
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) \
-                or self.seed < 0:
-            raise ValueError(f"seed: expected a non-negative integer, got {self.seed!r}")
 
     @property
     def robot_accuracy(self):
