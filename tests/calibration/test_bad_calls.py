@@ -101,11 +101,19 @@ def test_options_accept_the_ordinary_values():
 
 
 # ------------------------------------------------------------------ files and names
-def test_a_file_named_detections_in_out_is_refused_not_a_traceback(tmp_path, capsys):
+@pytest.mark.parametrize("kind", ["file", "symlink"])
+def test_a_file_or_link_named_detections_in_out_is_refused_not_a_traceback(tmp_path, capsys,
+                                                                          kind):
     from tests.apps.test_calibrate import IMAGES
     out = tmp_path / "out"
     out.mkdir()
-    (out / "detections").write_text("mine")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "img_000.png").write_text("mine")
+    if kind == "file":
+        (out / "detections").write_text("mine")
+    else:
+        (out / "detections").symlink_to(elsewhere, target_is_directory=True)
     code = main(["calibrate", "--images", str(IMAGES), "--robot", str(IMAGES / "robot_poses.tum"),
                  "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--intrinsics",
                  str(IMAGES / "intrinsics.yaml"), "--refine-intrinsics", "none", "--out",
@@ -113,7 +121,21 @@ def test_a_file_named_detections_in_out_is_refused_not_a_traceback(tmp_path, cap
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err and "detections" in err, err
     assert len(err.strip().splitlines()) == 1
-    assert (out / "detections").read_text() == "mine"
+    assert (elsewhere / "img_000.png").read_text() == "mine"
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["img_000.png"]
+    if kind == "file":
+        assert (out / "detections").read_text() == "mine"
+
+
+def test_a_directory_named_calibration_json_is_refused(tmp_path, capsys):
+    from tests.apps.test_calibrate import CAMERA, ROBOT
+    out = tmp_path / "out"
+    (out / "calibration.json").mkdir(parents=True)
+    code = main(["calibrate", "--robot", ROBOT, "--camera", CAMERA, "--out", str(out),
+                 "--force"])
+    err = capsys.readouterr().err
+    assert code == 2 and "calibration.json" in err and "Traceback" not in err, err
+    assert (out / "calibration.json").is_dir()
 
 
 @pytest.mark.parametrize("option, value", [("--parent-frame", "my tool"),
