@@ -101,7 +101,8 @@ def corner_streams(given, mode: str = "eye_in_hand", n: int = 12, seed: int = 0,
     inputs = {"images": {"count": n, "detected": n, "target": "grid 8x6 0.03",
                          "intrinsics": "given", "intrinsics_note": ""},
               "robot": {"path": None, "format": "tum", "translation_scale": 1.0}}
+    # Which stream is the camera's is known (as for image files: roles_known).
     streams = Streams(robot, camera, inputs, (), [], intrinsics_of(given), None, detections,
-                      "given")
+                      "given", roles_known=True)
     hand = X_EC if mode == "eye_in_hand" else X_BC
     return streams, {"X_hand": hand, "intrinsics": truth}
