@@ -27,12 +27,21 @@ def test_a_wide_time_offset_range_is_searched_not_recursed(streams, search_range
 
 
 def test_cli_wide_time_offset_range(tmp_path, capsys):
-    from tests.apps.test_calibrate import CAMERA, ROBOT
-    code = main(["calibrate", "--robot", ROBOT, "--camera", CAMERA, "--time-offset-range",
-                 "2500", "--out", str(tmp_path / "o")])
+    from handeye_drake.estimation.se3 import quat_wxyz
+    robot, camera, _ = synthetic_streams(0.02, seed=4, duration=6.0)
+    files = []
+    for name, s in (("robot", robot), ("camera", camera)):
+        lines = [f"{t:.6f} " + " ".join(f"{v:.9f}" for v in (*X[:3, 3], *quat_wxyz(X[:3, :3])[1:],
+                                                             quat_wxyz(X[:3, :3])[0]))
+                 for t, X in zip(s.timestamps, s.poses)]
+        files.append(tmp_path / f"{name}.tum")
+        files[-1].write_text("\n".join(lines) + "\n")
+    code = main(["calibrate", "--robot", str(files[0]), "--camera", str(files[1]),
+                 "--time-offset-range", "2500", "--out", str(tmp_path / "o")])
     out = capsys.readouterr()
     assert code == 0 and "Traceback" not in out.err, out.err
-    assert "time offset: +0.020" in out.out      # the example is stamped 0.02 s late
+    line = next(s for s in out.out.splitlines() if s.startswith("time offset:"))
+    assert abs(float(line.split()[2]) - 0.02) < 0.02, line      # stamped 0.02 s late
 
 
 # ------------------------------------------------------------------ poses in memory
