@@ -125,7 +125,8 @@ def check_pairing(result, streams) -> None:
     found = pairing_shift(streams.robot.poses, streams.camera.poses)
     if found is None:
         return
-    reason = Reason("FAIL", "pairing_shift", shift_message(*found, bool(streams.detections or streams.images)))
+    images = bool(streams.detections or streams.images)
+    reason = Reason("FAIL", "pairing_shift", shift_message(*found, images))
     keep = [r for r in result.verdict.reasons if r.code not in CONSEQUENCES]
     result.verdict = type(result.verdict)("FAIL", [reason] + keep)
 
@@ -165,9 +166,9 @@ def explain_failure(error: ValueError, streams) -> ValueError:
     if by_index(streams):
         found = pairing_shift(streams.robot.poses, streams.camera.poses)
         if found is not None:
+            images = bool(streams.detections or streams.images)
             return ValueError(f"no hand-eye transform fits the samples as paired; likely "
-                              f"cause: {shift_message(*found, bool(streams.detections or streams.images))} (as "
-                              f"paired: {error})")
+                              f"cause: {shift_message(*found, images)} (as paired: {error})")
     if (streams.detections or streams.images) and streams.intrinsics_source == "given":
         hint = resolution_hint(streams.intrinsics)
         if hint:
@@ -176,5 +177,5 @@ def explain_failure(error: ValueError, streams) -> ValueError:
     return error
 
 
-__all__ = ["check_pairing", "check_resolution", "explain_failure", "pairing_shift", "resolution_hint",
-           "shift_scores"]
+__all__ = ["check_pairing", "check_resolution", "explain_failure", "pairing_shift",
+           "resolution_hint", "shift_scores"]
