@@ -76,15 +76,16 @@ def shift_message(k: int, scores: dict, images: bool) -> str:
     if k > 0:
         where = (f"camera sample i fits robot pose i + {n}: {one} {pose} more at the start "
                  f"(or {one} {sample} missing there)")
-        fix = f"drop the first {one} {pose}"
+        fix = f"drop the first {pose}" if n == 1 else f"drop the first {n} {pose}"
     else:
         where = (f"camera sample i fits robot pose i − {n}: {one} {sample} more at the start "
                  f"(or {one} {pose} missing there)")
-        fix = f"drop the first {one} {sample}"
+        fix = f"drop the first {sample}" if n == 1 else f"drop the first {n} {sample}"
     return (f"the {'images' if images else 'camera samples'} are paired with the robot poses "
             f"shifted by {one}: {where} — paired that way the motions' rotation angles agree "
             f"to {scores[k]:.3g}° in median instead of {scores[0]:.3g}° (they pair in order, "
-            f"one each, not by time) — {fix} so that they pair in order")
+            f"one each, not by time) — {fix}, or add the missing one, so that they pair in "
+            "order")
 
 
 def by_index(streams) -> bool:
@@ -157,7 +158,8 @@ def check_resolution(result, streams) -> None:
 CONSEQUENCES = ("residuals", "sigma", "held_out", "outliers", "time_offset", "pixel_residuals",
                 "image_outliers", "intrinsics", "target_size", "camera_scale", "weak",
                 "implausible_result", "swapped_streams", "robot_millimetres",
-                "camera_millimetres", "other_mode")
+                "camera_millimetres", "other_mode", "clock_offset", "robot_quaternion_order",
+                "camera_quaternion_order", "both_quaternion_order", "robot_inverted")
 
 
 def explain_failure(error: ValueError, streams) -> ValueError:

@@ -35,6 +35,26 @@ def test_images_paired_with_poses_shifted_are_named_not_a_clock_offset(shift, se
     assert "--time-offset" not in message.split("(as paired")[0]
 
 
+def test_image_files_paired_shifted_are_named(tmp_path, capsys):
+    """The rendered example with its first image missing: image i pairs with robot pose i + 1."""
+    import shutil
+    from handeye_drake.apps.cli import main
+    from tests.apps.test_calibrate import IMAGES
+    folder = tmp_path / "images"
+    folder.mkdir()
+    for k in range(1, 14):
+        shutil.copy(IMAGES / f"img_{k:03d}.png", folder)
+    lines = (IMAGES / "robot_poses.tum").read_text().splitlines()
+    poses = [s for s in lines if not s.startswith("#")]
+    (tmp_path / "robot.tum").write_text("\n".join(poses[:13]) + "\n")
+    code = main(["calibrate", "--images", str(folder), "--robot", str(tmp_path / "robot.tum"),
+                 "--target", "charuco:7x5:0.04:0.03:DICT_5X5_100", "--intrinsics",
+                 str(IMAGES / "intrinsics.yaml"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "images are paired with the robot poses shifted by one" in err, err
+    assert "one image missing there" in err
+
+
 def test_right_pairing_is_not_read_as_a_shift():
     for seed in range(5):
         streams, _ = corner_streams(TRUTH, n=12, seed=seed)
