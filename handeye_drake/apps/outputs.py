@@ -92,6 +92,20 @@ class OutputDir:
             raise ValueError(f"--out {self.root}: {name} exists and was not written by "
                              f"'handeye-drake {self.command}'; not overwriting it (choose another "
                              "--out)")
+        # A folder of the name that is a file (someone's "detections" file): refused by name,
+        # never replaced, never a traceback from mkdir.
+        q = self.root
+        for part in Path(name).parts[:-1]:
+            q = q / part
+            if q.is_symlink() or (os.path.lexists(q) and not q.is_dir()):
+                what = "a symbolic link" if q.is_symlink() else "not a directory"
+                raise ValueError(f"--out {self.root}: {q.relative_to(self.root)} exists and is "
+                                 f"{what}; 'handeye-drake {self.command}' writes {name} there "
+                                 "— not touching it (choose another --out)")
+        if p.is_symlink() or p.is_dir():
+            raise ValueError(f"--out {self.root}: {name} exists and is "
+                             f"{'a symbolic link' if p.is_symlink() else 'a directory'}; not "
+                             "writing through it (choose another --out)")
         p.parent.mkdir(parents=True, exist_ok=True)
         if name not in self.claimed:
             # Claimed in the manifest before it is written: a run that stops half-way (an

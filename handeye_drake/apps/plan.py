@@ -64,7 +64,8 @@ def _estimate_from_recording(args, fixed, mode):
     camera = read_poses(args.camera, "camera", args.format,
                         camera_in_target=args.camera_pose_is_camera_in_target,
                         translation_scale=args.translation_scale)
-    aligned = align_streams(robot, camera, args.time_offset)
+    offset = _check_recording(robot, camera, args, fixed, mode)
+    aligned = align_streams(robot, camera, offset)
     X_BE, X_CT = list(aligned.X_BE), list(aligned.X_CT)
     sr = math.radians(args.rotation_sigma_deg or DEFAULT_ROTATION_SIGMA_DEG)
     st = args.translation_sigma or DEFAULT_TRANSLATION_SIGMA
@@ -105,6 +106,65 @@ def _estimate_from_recording(args, fixed, mode):
         note = "estimated from the fit's residuals" + (
             f", {dropped} outlying samples dropped" if dropped else "")
     return X_CH, X_FT, X_BE, sr, st, (f"fit of {len(X_BE)} recorded samples", note)
+
+
+#: Reasons of calibrate's verdict that do not stop a plan: a recording too short or too poor to
+#: determine every direction is what planning is for.
+PLAN_TOLERATES = ("unobservable", "weak", "too_few_samples", "held_out", "sigma", "time_offset")
+#: Without --intrinsics, the target counts as in view within this angle of the optical axis
+#: (wider than any usual lens's half field of view: only what no camera sees is refused).
+VIEW_CONE_DEG = 60.0
+
+
+def _check_recording(robot, camera, args, fixed, mode) -> float:
+    """calibrate's checks on the recording a plan starts from: a FAIL that says the data are
+    read wrong (swapped or inverted files, units, quaternion order, a target that moved, an
+    implausible mount) refuses the plan, naming the cause, as calibrate would; what only says
+    the recording is too short (unobservable or weak directions, few samples) does not.
+    Returns the clock offset (s) to pair the samples with: --time-offset, or calibrate's
+    estimate (auto, the default when both files have timestamps)."""
+    from ..calibration.pipeline import calibrate_streams
+    given = args.time_offset if isinstance(args.time_offset, (int, float)) else 0.0
+    try:
+        result = calibrate_streams(robot, camera, mode=mode, time_offset=args.time_offset,
+                                   holdout_fraction=0.0, fixed=fixed or None,
+                                   robot_accuracy=None)
+    except ValueError as e:
+        text = str(e)
+        if any(w in text for w in ("unobservable", "does not determine", "parallel",
+                                   "at least", "too few")):
+            return given    # too short or too poor to check: the plan is how it gets better
+        raise ValueError(f"--robot, --camera: the recording does not calibrate ({text}); a "
+                         "plan from it would start from a wrong estimate") from None
+    bad = [r for r in result.verdict.reasons if r.level == "FAIL"
+           and r.code not in PLAN_TOLERATES]
+    if bad:
+        raise ValueError(f"--robot, --camera: calibrate's checks fail on the recording "
+                         f"({bad[0].code}: {bad[0].message}); a plan from it would start from a "
+                         "wrong estimate — fix the cause first")
+    return float(result.time_offset.offset) if result.time_offset is not None else given
+
+
+def _in_view(X_BE, X_HC, p_F, mode, intrinsics) -> tuple[bool, np.ndarray]:
+    """(the target point is in view, its position in C) at the robot pose X_BE: in front of
+    the camera and inside the image (with intrinsics) or within ``VIEW_CONE_DEG`` of the
+    optical axis."""
+    X_CF = inverse(np.asarray(X_BE) @ X_HC) if mode == "eye_in_hand" else \
+        inverse(X_HC) @ np.asarray(X_BE)
+    p_C = X_CF[:3, :3] @ p_F + X_CF[:3, 3]
+    if p_C[2] <= 1e-3:
+        return False, p_C
+    if intrinsics is not None:
+        from ..vision.camera_model import project_points
+        return bool(project_points(p_C, intrinsics)[2][0]), p_C
+    return math.degrees(math.atan2(math.hypot(p_C[0], p_C[1]), p_C[2])) <= VIEW_CONE_DEG, p_C
+
+
+def _where(p_C) -> str:
+    if p_C[2] <= 1e-3:
+        return f"behind the camera (z = {p_C[2]:+.3f} m in C)"
+    return (f"{math.degrees(math.atan2(math.hypot(p_C[0], p_C[1]), p_C[2])):.0f}° off the "
+            "optical axis")
 
 
 def run_plan(args) -> int:
@@ -172,6 +232,19 @@ def run_plan(args) -> int:
             args.rotation_sigma_deg and args.translation_sigma) else "default"
 
     intrinsics = parse_intrinsics(args.intrinsics) if args.intrinsics else None
+    X_HC0, p_F = inverse(X_CH), X_FT[:3, 3]
+    lens = "in the image" if intrinsics is not None else \
+        f"within {VIEW_CONE_DEG:g}° of the optical axis"
+    if samples and not args.camera:
+        # The recorded poses saw the target: guesses that put it out of view there are wrong.
+        views = [_in_view(X, X_HC0, p_F, mode, intrinsics) for X in samples]
+        blind = [k for k, (ok, _) in enumerate(views) if not ok]
+        if len(blind) > len(samples) // 2:
+            raise ValueError(
+                f"--hand-eye, --target: with them the target is not {lens} at {len(blind)} of "
+                f"the {len(samples)} recorded poses of --robot (first: pose {blind[0] + 1}, "
+                f"{_where(views[blind[0]][1])}) — the recorded poses saw it; check --hand-eye "
+                f"({'X_EC' if mode == 'eye_in_hand' else 'X_BC'}), --target and --mode")
     if args.candidates:
         candidates = read_poses(args.candidates, "robot", args.format,
                                 translation_scale=args.translation_scale).poses
@@ -187,18 +260,43 @@ def run_plan(args) -> int:
                 return bool(inside[0])
     else:
         center = parse_pose(args.around, "--around")
+        ok, p_C = _in_view(center, X_HC0, p_F, mode, intrinsics)
+        if not ok:
+            raise ValueError(
+                f"--around: the camera does not see the target at this pose: the target is "
+                f"{_where(p_C)} (must be {lens}) — candidates sampled around it would be blind; "
+                f"check --around, --hand-eye "
+                f"({'X_EC' if mode == 'eye_in_hand' else 'X_BC'}) and --target")
         rng = np.random.default_rng(args.seed)
         candidates = sample_candidate_poses(
             center, X_FT[:3, 3], args.num_candidates, args.max_angle, args.max_distance, rng,
             X_HC=inverse(X_CH), intrinsics=intrinsics, mode=mode)
         visibility = None
 
+    if visibility is None:
+        # Never a blind pose: without intrinsics, the target in front within the cone.
+        def visibility(X):
+            return _in_view(X, X_HC0, p_F, mode, intrinsics)[0]
+    seen = [bool(visibility(X)) for X in candidates]
+    if not any(seen):
+        first = _in_view(candidates[0], X_HC0, p_F, mode, intrinsics)[1]
+        raise ValueError(
+            f"--candidates: the camera sees the target at none of the {len(candidates)} "
+            f"candidate poses (the first: target {_where(first)}; it must be {lens}) — check "
+            f"--hand-eye ({'X_EC' if mode == 'eye_in_hand' else 'X_BC'}), --target and the "
+            "candidates' frame")
+    if sum(seen) < args.n:
+        raise ValueError(f"--n: only {sum(seen)} of the {len(candidates)} candidates see the "
+                         f"target ({lens}); asked for {args.n}")
+    blind_note = "" if all(seen) else (f"; {len(seen) - sum(seen)} of {len(candidates)} "
+                                       f"candidates left out: the target is not {lens} there")
     plan = plan_next_poses(candidates, X_CH, X_FT, samples, sr, st, n=args.n, mode=mode,
                            visibility=visibility, fixed=tuple(fixed))
     X_HC = inverse(X_CH)
     hc = f"X_{H}C"
     print(f"planning {args.n} poses ({mode}) among {len(candidates)} candidates; estimates from "
-          f"{source}; camera noise {math.degrees(sr):.3g}° / {1000 * st:.3g} mm ({noise_note})")
+          f"{source}; camera noise {math.degrees(sr):.3g}° / {1000 * st:.3g} mm ({noise_note})"
+          + blind_note)
     print(f"  {hc} translation [{' '.join(f'{x:+.4f}' for x in X_HC[:3, 3])}] m"
           + (f"; fixed: {', '.join(f'{k}={v:g}' for k, v in fixed.items())}" if fixed else ""))
     report = None
@@ -263,8 +361,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="pose file format (default: from the extension)")
     p.add_argument("--camera-pose-is-camera-in-target", action="store_true",
                    help="the camera file holds X_TC instead of X_CT")
-    p.add_argument("--time-offset", type=float, default=0.0, metavar="SECONDS",
-                   help="camera stamp − robot time of the same instant (default 0)")
+    from .calibrate.command import _time_offset_arg
+    p.add_argument("--time-offset", type=_time_offset_arg, default=None, metavar="auto|SECONDS",
+                   help="camera stamp − robot time of the same instant (default: estimated, as "
+                        "calibrate does, when both files have timestamps; else 0)")
     p.add_argument("--translation-scale", type=float, default=1.0, metavar="FACTOR",
                    help="multiply every translation read from files (0.001 for millimetres)")
     src = p.add_argument_group("candidate poses (one of)")

@@ -218,15 +218,15 @@ class TimeOffsetEstimate:
     residual_rms_deg: float
 
 
+#: Levels of the wide search (each narrows the range about its best offset): a bound, never a
+#: recursion without end.
+MAX_WIDE_LEVELS = 6
+
+
 def _angles(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
     """Rotation angles of R0ᵀ R1 (rad), from the trace (clipped): fast, vectorized."""
     c = (np.einsum("kij,kij->k", R0, R1) - 1.0) / 2.0
     return np.arccos(np.clip(c, -1.0, 1.0))
-
-
-#: Nested wide searches (each narrowing the range about the previous best) before the offset is
-#: called unobservable: a short overlap could otherwise narrow it forever.
-MAX_WIDE_SEARCHES = 4
 
 
 def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, step,
@@ -239,6 +239,7 @@ def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, 
     t0, t1 = interp.span
     tc = camera.timestamps
     need = max(8, int(np.count_nonzero((tc >= t0) & (tc <= t1))) // 2)
+    asked = step
     if step is None:
         periods = [_median_period(robot.timestamps), _median_period(tc)]
         step = min(p for p in periods if math.isfinite(p)) / 4.0
@@ -269,14 +270,17 @@ def _wide_search(robot: PoseStream, camera: PoseStream, interp, R: float, lags, 
     # (the ordinary search's condition), at least 4 grid steps.
     margin = np.minimum(tc - best - t0, t1 - (tc - best))
     keeps = float(np.sort(margin)[::-1][need - 1])
+    # The refinement uses the step asked for (the grid's may be coarser, at most 2001 points):
+    # each level narrows the range by the grid's ratio, so this ends in a few levels (a loop
+    # on the same coarse step never would).
     near = estimate_time_offset(robot, shifted, min(R, max(keeps, 4 * (grid[1] - grid[0]))),
-                                lags, step, _depth=depth + 1)
+                                lags, asked, _depth=depth + 1)
     return TimeOffsetEstimate(best + near.offset, R, near.grid + best, near.cost,
                               near.num_motions, near.residual_rms_deg)
 
 
 def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: float = 0.5,
-                         lags=(1, 2, 4, 8), step: float | None = None,
+                         lags=(1, 2, 4, 8), step: float | None = None, *,
                          _depth: int = 0) -> TimeOffsetEstimate:
     """Estimates the constant offset (camera stamp − robot time) in [−search_range, search_range].
 
@@ -324,13 +328,14 @@ def estimate_time_offset(robot: PoseStream, camera: PoseStream, search_range: fl
     ok = np.flatnonzero((tc - R >= t0) & (tc + R <= t1))
     inside = int(np.count_nonzero((tc >= t0) & (tc <= t1)))
     if len(ok) < max(4, inside // 2) and inside >= 8:
-        if _depth >= MAX_WIDE_SEARCHES:
-            # The range about each wide search's best stays too wide for the overlap (a short
-            # recording, e.g. a bag still being recorded): not estimable yet.
+        if _depth >= MAX_WIDE_LEVELS:
+            # Still too wide after the bounded narrowings: a range far beyond the recording, or
+            # an overlap too short (a bag still being recorded) — not estimable (yet).
             raise UnobservableTimeOffset(
-                f"time offset estimation: {camera.source} overlaps the robot's time span too "
-                f"little to estimate the offset ({len(ok)} of {inside} camera samples stay "
-                "inside it for every candidate offset)")
+                f"time offset estimation: ±{R:g} s is too wide for the recording's length "
+                f"({t1 - t0:.4g} s of robot poses; {len(ok)} of {inside} camera samples of "
+                f"{camera.source} stay inside it for every candidate offset) even after "
+                f"{_depth} narrowings — reduce --time-offset-range{units} or record longer")
         # A range wide for the recording's length: every candidate offset on its own overlap
         # first, then the usual search in a narrow range about the best one.
         return _wide_search(robot, camera, interp, R, lags, step, units, _depth)

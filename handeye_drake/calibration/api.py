@@ -15,14 +15,20 @@ camera C). Eye-in-hand gives X_EC and X_BT; eye-to-hand gives X_BC and X_ET. Cov
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
 from dataclasses import dataclass
 
+import numpy as np
+
 from .corners import REFINE_CHOICES, calibrate_images
+from . import pairing
 from .euler_check import check_robot_euler, explain_failure
 from .inputs import (DEFAULT_MAX_IMAGES, Streams, bag_image_streams, bag_streams, file_streams,
                      image_streams, resolve_symmetric_board)
 from .pipeline import CalibrationResult, calibrate_streams
-from ..recorded.formats import MAX_TRANSLATION
+from ..estimation.se3 import inverse
+from ..recorded.formats import MAX_TRANSLATION, PoseStream, pose_stream
 
 #: The robot's pose accuracy assumed unless told (an uncalibrated industrial arm).
 DEFAULT_ROBOT_ACCURACY = (0.03, 0.3)          # deg, mm
@@ -84,6 +90,25 @@ class CalibrationOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
                 raise ValueError(f"{name}: expected a number ≥ 0, got {v!r}")
+        # A negative bound would pass through to a verdict that always trips (a nan offset to
+        # one that never pairs): checked here, where it is given.
+        def number(name, low, high, low_open, allow_none=False):
+            v = getattr(self, name)
+            if v is None and allow_none:
+                return
+            ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer,
+                                                             np.floating)) and math.isfinite(v)
+            ok = ok and (v > low if low_open else v >= low) and v <= high
+            if not ok:
+                bound = (f" {'>' if low_open else '≥'} {low:g}" if math.isfinite(low) else "") \
+                    + (f" and ≤ {high:g}" if math.isfinite(high) else "")
+                raise ValueError(f"{name}: expected a finite number{bound}"
+                                 + (" (or None)" if allow_none else "") + f", got {v!r}")
+        # (The others are checked, with their own messages, where they are used: the pair
+        # selection, the hold-out, the time offset's range, the on-line replay.)
+        number("max_hand_eye_distance_m", 0.0, math.inf, True, allow_none=True)
+        if self.time_offset_s not in (None, "auto"):
+            number("time_offset_s", -math.inf, math.inf, False)   # or "auto"
 
     @property
     def robot_accuracy(self):
@@ -130,13 +155,78 @@ def solve(streams: Streams, options: CalibrationOptions = CalibrationOptions()
             result = calibrate_streams(streams.robot, streams.camera, **settings)
             intrinsics = streams.intrinsics
     except ValueError as e:
-        raise explain_failure(e, streams, euler[0], euler[1], euler[2], settings) from None
+        explained = explain_failure(e, streams, euler[0], euler[1], euler[2], settings)
+        raise (pairing.explain_failure(e, streams) if explained is e else explained) from None
     check_robot_euler(result, streams, *euler)
+    pairing.check_pairing(result, streams)
+    pairing.check_resolution(result, streams)
     result.inputs = streams.inputs
     if streams.images:
         result.inputs["images"]["per_image"] = [dataclasses.asdict(r) for r in streams.images]
     result.intrinsics = intrinsics
     return result
+
+
+def _is_path(value) -> bool:
+    return isinstance(value, (str, bytes, os.PathLike))
+
+
+def _array_stream(value, times, name: str, what: str, translation_scale: float,
+                  max_translation, invert: bool = False) -> PoseStream:
+    """A ``PoseStream`` of poses given in memory: a ``PoseStream``, or an (N, 4, 4) array /
+    list of 4×4 with optional timestamps (N,) s; ValueError naming the argument."""
+    if isinstance(value, PoseStream):
+        if times is not None:
+            raise ValueError(f"{name}_timestamps: {name} is a PoseStream, which holds its own")
+        return value
+    if _is_path(value):
+        raise ValueError(f"{name}: a file path ({value!r}) beside poses given as an array: give "
+                         "both streams as files, or both as arrays")
+    try:
+        P = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        P = None
+    if P is None or P.ndim != 3 or P.shape[1:] != (4, 4) or len(P) == 0:
+        shape = f"shape {P.shape}" if P is not None else type(value).__name__
+        raise ValueError(f"{name}: expected a pose file path, or {what} as an (N, 4, 4) array "
+                         f"or a list of 4×4 transforms, got {shape}")
+    if times is not None:
+        try:
+            T = np.array(times, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            T = None
+        if T is None or T.shape != (len(P),):
+            raise ValueError(f"{name}_timestamps: expected {len(P)} times (s), one per pose of "
+                             f"{name}, got {'shape ' + str(T.shape) if T is not None else times!r}")
+        times = T
+    try:
+        stream = pose_stream(P, times, source=f"{name} (array)",
+                             translation_scale=translation_scale,
+                             max_translation=max_translation)
+    except ValueError as e:
+        raise ValueError(f"{name}: {e}") from None
+    if invert:
+        stream = dataclasses.replace(stream, poses=np.array([inverse(X) for X in stream.poses]))
+    return stream
+
+
+def _array_streams(robot, camera, robot_timestamps, camera_timestamps, camera_in_target,
+                   robot_scale, camera_scale, max_translation) -> Streams:
+    if (robot_timestamps is None) != (camera_timestamps is None) and not isinstance(
+            robot, PoseStream) and not isinstance(camera, PoseStream):
+        given = "robot_timestamps" if robot_timestamps is not None else "camera_timestamps"
+        raise ValueError(f"{given}: give the times of both streams or of neither (without "
+                         "them the samples pair by index)")
+    bound = MAX_TRANSLATION if max_translation is None else max_translation
+    r = _array_stream(robot, robot_timestamps, "robot", "X_BE", robot_scale, bound)
+    c = _array_stream(camera, camera_timestamps, "camera", "X_CT", camera_scale, bound,
+                      camera_in_target)
+    inputs = {"robot": {"path": None, "source": r.source, "samples": len(r), "format": "array",
+                        "translation_scale": robot_scale},
+              "camera": {"path": None, "source": c.source, "samples": len(c),
+                         "format": "array", "translation_scale": camera_scale,
+                         "pose_is_camera_in_target": bool(camera_in_target)}}
+    return Streams(r, c, inputs, ())
 
 
 def read_inputs(robot=None, camera=None, *, images=None, bag=None,
@@ -147,8 +237,12 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
                 camera_translation_scale: float = 1.0, max_translation: float | None = None,
                 time_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
                 camera_quaternion_order: str = "xyzw", robot_format: str | None = None,
-                camera_format: str | None = None, drawings_dir=None) -> Streams:
-    """``Streams`` of one of: ``robot`` and ``camera`` pose files; ``images`` of a ``target``
+                camera_format: str | None = None, drawings_dir=None,
+                robot_timestamps=None, camera_timestamps=None) -> Streams:
+    """``Streams`` of one of: ``robot`` and ``camera`` pose files — or poses in memory: each an
+    (N, 4, 4) array or a list of 4×4 transforms (X_BE, X_CT), or a ``PoseStream``, with
+    ``robot_timestamps`` and ``camera_timestamps`` (s) optional (without them the samples pair
+    by index); ``images`` of a ``target``
     with the ``robot`` pose file; a ``bag`` with ``robot_frames`` and ``camera_topic``,
     ``camera_frames`` or ``image_topic`` (with ``target``). The other arguments are the reading
     options of the command line (``--format``, ``--robot-translation-scale``, …; None
@@ -160,6 +254,18 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
     if (camera is not None or images is not None) and robot is None:
         raise ValueError("robot: the robot poses (X_BE) are needed with "
                          + ("camera" if camera is not None else "images"))
+    for name, value in (("robot", robot), ("camera", camera)):
+        if value is not None and not _is_path(value) and (images is not None or bag is not None):
+            raise ValueError(f"{name}: with images or a bag, give the robot poses as a file "
+                             f"path (got {type(value).__name__})")
+    if images is None and bag is None and not (_is_path(robot) and _is_path(camera)):
+        return _array_streams(robot, camera, robot_timestamps, camera_timestamps,
+                              camera_pose_is_camera_in_target, robot_translation_scale,
+                              camera_translation_scale, max_translation)
+    for name, value in (("robot_timestamps", robot_timestamps),
+                        ("camera_timestamps", camera_timestamps)):
+        if value is not None:
+            raise ValueError(f"{name}: times go with poses given as arrays; a file holds its own")
     if (images is not None or image_topic) and not target:
         raise ValueError("target: the calibration target is needed with images (e.g. "
                          "chessboard:9x6:0.0236)")

@@ -26,6 +26,7 @@ from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, LOO_
 from ..estimation.se3 import rotation_log
 from ..estimation.consistency import with_scaled_translations
 from .checks import Reason, Verdict, _quick_fit
+from .held_intrinsics import apply_held_check
 from .pipeline import calibrate_streams, robot_error_covariance
 
 REFINE_CHOICES = INTRINSICS_MODELS + ("auto",)
@@ -122,6 +123,7 @@ class CornerStage:
                                                             f.image_rms_px, cv_images,
                                                             f.image_pose_chi2)],
                 "pose_level_difference": _difference(self.pose_level_X_H, f.X_H),
+                "held_intrinsics_test": getattr(self, "held", None),
                 "notes": list(self.notes)}}
 
     def camera_intrinsics(self, like):
@@ -283,6 +285,9 @@ def refine_with_corners(result, detections, intrinsics, refine: str = "auto",
     if intrinsics_source == "given":
         _intrinsics_check(stage, data, kwargs, tried if refine == "auto" and
                           stage.scale_fit is None else None)
+        # The intrinsics the model holds fixed, tested against the pixels (held_intrinsics).
+        full = tried.get("full", {}).get("fit") if refine == "auto" else None
+        apply_held_check(stage, data, robot_accuracy, result.settings["max_noise"], full)
     _pixel_checks(stage, result.settings["max_noise"])
     _apply(result, stage, robot_accuracy, data)
     return stage
@@ -784,7 +789,8 @@ def _apply(result, stage: CornerStage, robot_accuracy, data=None) -> None:
     reasons = [r for r in result.verdict.reasons if r.code not in SUPERSEDED]
     named = [r for r in stage.reasons if r.code in ("target_size", "intrinsics")]
     scaled = any(r.code == "target_scale" for r in stage.reasons)
-    if (named or scaled) and not any(r.code == "pixel_residuals" for r in stage.reasons):
+    if (named or scaled) and (not any(r.code == "pixel_residuals" for r in stage.reasons)
+                              or getattr(stage, "explained", False)):
         # The pose-level checks ran on poses measured with the wrong size or intrinsics: what
         # they flag are consequences of the cause the pixels name. (A scale answered with both
         # readings is in the fit the pixel-level checks judged: their reasons all stand.)

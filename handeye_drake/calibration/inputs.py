@@ -56,6 +56,43 @@ def _reorder(stream: PoseStream, order: str, option: str, fmt: str) -> PoseStrea
         stream.poses, rotation_from_swapped_quaternions(stream.poses[:, :3, :3])))
 
 
+_MM_HINT = "(translation_scale=0.001, command line --translation-scale 0.001)"
+
+
+def _read_or_error(*args):
+    try:
+        return read_poses(*args), None
+    except ValueError as e:
+        return None, e
+
+
+def _raise_units(robot_err, camera_err, robot_scale: float, camera_scale: float) -> None:
+    """The first reading error, its units hint naming the file(s) that need scaling: one file
+    in millimetres takes --robot- or --camera-translation-scale (--translation-scale would
+    scale the other, metric, file too)."""
+    if robot_err is None and camera_err is None:
+        return
+    mm = {w: e is not None and _MM_HINT in str(e)
+          for w, e in (("robot", robot_err), ("camera", camera_err))}
+    err = robot_err if robot_err is not None else camera_err
+    which = "robot" if err is robot_err else "camera"
+    if not mm[which]:
+        raise err
+    if mm["robot"] and mm["camera"] and robot_scale == camera_scale:
+        hint = ("(both files: --translation-scale 0.001 on the command line, "
+                "robot_translation_scale=camera_translation_scale=0.001 in the API)")
+    elif mm["robot"] and mm["camera"]:
+        hint = ("(both files: --robot-translation-scale and --camera-translation-scale "
+                "0.001)")
+    else:
+        other = "camera" if which == "robot" else "robot"
+        hint = (f"(this file only — the {other} file reads as metres: "
+                f"--{which}-translation-scale 0.001 on the command line, "
+                f"{which}_translation_scale=0.001 in the API; --translation-scale would "
+                f"scale both)")
+    raise ValueError(str(err).replace(_MM_HINT, hint)) from None
+
+
 def file_streams(robot_path, camera_path, fmt: str | None = None, camera_in_target: bool = False,
                  robot_translation_scale: float = 1.0, camera_translation_scale: float = 1.0,
                  max_translation: float | None = MAX_TRANSLATION, time_scale: float = 1.0,
@@ -69,10 +106,12 @@ def file_streams(robot_path, camera_path, fmt: str | None = None, camera_in_targ
     camera_fmt = camera_format or fmt or infer_format(camera_path)
     same = str(robot_path) == str(camera_path)
     raw = read_input(robot_path) if same else None
-    robot = read_poses(raw or robot_path, "robot", robot_fmt, False, robot_translation_scale,
-                       max_translation, time_scale)
-    camera = read_poses(raw or camera_path, "camera", camera_fmt, camera_in_target,
-                        camera_translation_scale, max_translation, time_scale)
+    robot, robot_err = _read_or_error(raw or robot_path, "robot", robot_fmt, False,
+                                      robot_translation_scale, max_translation, time_scale)
+    camera, camera_err = _read_or_error(raw or camera_path, "camera", camera_fmt,
+                                        camera_in_target, camera_translation_scale,
+                                        max_translation, time_scale)
+    _raise_units(robot_err, camera_err, robot_translation_scale, camera_translation_scale)
     robot = _reorder(robot, robot_quaternion_order, "--robot-quaternion-order", robot_fmt)
     camera = _reorder(camera, camera_quaternion_order, "--camera-quaternion-order", camera_fmt)
     quaternion = tuple(w for w, f in (("robot", robot_fmt), ("camera", camera_fmt))
@@ -479,7 +518,14 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
             _file_frames(paths, robot), target, w, h)
     records, found = _detect_frames(_file_frames(paths, robot), target, intrinsics,
                                     drawings_dir)
-    _require_found(records, found, target_spec, "--images")
+    try:
+        _require_found(records, found, target_spec, "--images")
+    except ValueError as e:
+        from .pairing import resolution_hint
+        hint = resolution_hint(intrinsics) if intrinsics_spec is not None else ""
+        if not hint:
+            raise
+        raise ValueError(f"--intrinsics: {hint} ({e})") from None
     keep = [k for k, _ in found]
     # Detected poses are at the declared target size: one far off (a square given in inches
     # read as metres) is for the corner-level fit to measure and name, not a pose file's units.
@@ -618,7 +664,11 @@ def resolve_symmetric_board(streams: Streams, mode: str) -> Streams:
     info = streams.inputs.get("images") if isinstance(streams.inputs, dict) else None
     if not streams.detections or not info or not info.get("target"):
         return streams
-    target = parse_target(info["target"])
+    try:
+        target = parse_target(info["target"])
+    except ValueError:
+        # Streams built in code may label their target freely: no board spec, no symmetry known.
+        return streams
     symmetries = target_symmetries(target)
     if not symmetries:
         return streams

@@ -153,17 +153,25 @@ def intrinsics_matrix(v) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _selection(model: str, v0: np.ndarray) -> np.ndarray:
-    """9 × m: the change of the intrinsics vector per free parameter of the model."""
-    if model not in INTRINSICS_MODELS:
+    """9 × m: the change of the intrinsics vector per free parameter of the model. ``model``:
+    one of ``INTRINSICS_MODELS``, or one of them with parameters released on top, joined by
+    "+" (``"focal+cy"``, ``"k1k2+p1+p2"``: the held-fixed intrinsics tested one by one)."""
+    base, *extra = str(model).split("+")
+    if base not in INTRINSICS_MODELS or any(e not in INTRINSICS_NAMES for e in extra):
         raise ValueError(f"refine_intrinsics: expected one of {', '.join(INTRINSICS_MODELS)}, "
                          f"got {model!r}")
-    if model == "focal":
+    if base == "focal":
         S = np.zeros((9, 1))
         S[0, 0], S[1, 0] = 1.0, v0[1] / v0[0]
-        return S
-    free = _FREE[model]
-    S = np.zeros((9, len(free)))
-    S[list(free), range(len(free))] = 1.0
+    else:
+        free = _FREE[base]
+        S = np.zeros((9, len(free)))
+        S[list(free), range(len(free))] = 1.0
+    for name in extra:
+        col = np.zeros((9, 1))
+        col[INTRINSICS_NAMES.index(name), 0] = 1.0
+        if np.linalg.matrix_rank(np.hstack([S, col])) > S.shape[1]:
+            S = np.hstack([S, col])
     return S
 
 

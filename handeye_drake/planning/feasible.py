@@ -514,6 +514,7 @@ class FeasiblePlanner:
         """
         if isinstance(n, bool) or int(n) != n or n < 1:
             raise ValueError(f"n: expected an integer ≥ 1, got {n!r}")
+        self.check_reach()
         rng = self.rng if rng is None else rng
         max_attempts = 4 * n if max_attempts is None else int(max_attempts)
         qs, Xs = [], []
@@ -562,6 +563,68 @@ class FeasiblePlanner:
         common = rejected.most_common(1)[0][0] if rejected else "random viewpoints rejected"
         return (f"{what}: views exist near the nominal configuration but the sampled viewpoints "
                 f"failed ({common}); widen the distance range or the tilt")
+
+    def reach_bound_m(self) -> float:
+        """An upper bound (m) of the flange origin's distance from the base origin over every
+        configuration: the lengths of the kinematic chain's fixed offsets added up (revolute
+        joints do not move a child's origin off its joint frame; a prismatic joint adds its
+        largest travel). inf when the chain has a joint it cannot bound (floating)."""
+        if getattr(self, "_reach", None) is not None:
+            return self._reach
+        plant = self.plant
+        by_child = {}
+        for j in plant.GetJointIndices():
+            joint = plant.get_joint(j)
+            by_child[joint.child_body().index()] = joint
+        base_body = self.base_frame.body().index()
+        total = float(np.linalg.norm(self.ee_frame.GetFixedPoseInBodyFrame().translation()))
+        total += float(np.linalg.norm(self.base_frame.GetFixedPoseInBodyFrame().translation()))
+        body = self.ee_frame.body().index()
+        for _ in range(plant.num_bodies()):
+            if body == base_body or body not in by_child:
+                break
+            joint = by_child[body]
+            total += float(np.linalg.norm(joint.frame_on_parent().GetFixedPoseInBodyFrame()
+                                          .translation()))
+            total += float(np.linalg.norm(joint.frame_on_child().GetFixedPoseInBodyFrame()
+                                          .translation()))
+            kind = joint.type_name().lower()
+            if "prismatic" in kind:
+                lim = np.concatenate([joint.position_lower_limits(),
+                                      joint.position_upper_limits()])
+                total += float(np.max(np.abs(lim))) if np.all(np.isfinite(lim)) else math.inf
+            elif "revolute" not in kind and "weld" not in kind:
+                total = math.inf
+            body = joint.parent_body().index()
+        if body != base_body:
+            total = math.inf          # the flange is not below the base in the tree
+        self._reach = total
+        return total
+
+    def check_reach(self) -> None:
+        """InfeasibleError at once (no IK) when no configuration can bring the camera within
+        the distance range of the target: the target (eye-in-hand) or the camera (eye-to-hand)
+        farther from the base than the arm's reach, the hand-eye offset and the range allow."""
+        reach = self.reach_bound_m()
+        if not math.isfinite(reach):
+            return
+        hi = self.view.distance_range_m[1]
+        if self.mode == "eye_in_hand":
+            p = self.X_FT[:3, :3] @ self.view.center + self.X_FT[:3, 3]
+            carried = float(np.linalg.norm(self.X_HC[:3, 3]))
+            what, offset = "target centre", "camera"
+        else:
+            p = self.X_HC[:3, 3]
+            carried = float(np.linalg.norm(self.X_FT[:3, :3] @ self.view.center
+                                           + self.X_FT[:3, 3]))
+            what, offset = "camera", "target"
+        far = float(np.linalg.norm(p))
+        if far - hi > reach + carried:
+            raise InfeasibleError(
+                f"target out of reach: the {what} is {far:.2f} m from the base origin, but the "
+                f"arm's flange reaches at most {reach:.2f} m (its link offsets added up), "
+                f"{reach + carried + hi:.2f} m with the {offset} offset and the {hi:g} m "
+                "viewing distance — check --target / --hand-eye (units, frame)")
 
     def _reach_hint(self) -> str:
         if self.mode != "eye_in_hand":

@@ -144,7 +144,7 @@ def test_camera_with_wrong_intrinsics_is_named(rig):
     r = calibrate_rig(cams, out / "robot_poses.tum", truth["target"], options=OPTIONS)
     why = r.cameras["wrist2"].verdict.reasons[0]
     assert r.verdict.status == "FAIL" and why.code == "intrinsics"
-    assert why.message.startswith("camera wrist2: the intrinsics given do not fit the images")
+    assert why.message.startswith("camera wrist2: the intrinsics") and "do not fit the images" in why.message
     assert r.cameras["cell"].verdict.status != "FAIL"
     _check_within_sigma(dataclasses.replace(r, cameras={n: r.cameras[n]
                                                         for n in ("wrist", "cell")}), truth)

@@ -114,6 +114,27 @@ def test_unreachable_target_is_one_line():
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize("mode, where", [("eye_in_hand", [7.0, 0.0, 0.0]),
+                                         ("eye_in_hand", [0.0, -2.5, 1.0]),
+                                         ("eye_to_hand", [0.0, 6.0, 0.5])])
+def test_far_beyond_reach_is_refused_by_the_reach_bound_before_any_ik(mode, where):
+    """Issue 37: a target 7 m away was refused only after ~50 s of IK. The reach bound (the
+    chain's offsets added up) refuses it before any IK problem: IK is made to fail loudly."""
+    if mode == "eye_in_hand":
+        p = FeasiblePlanner(mode, X_EC, make_transform(FACE_UP, where))
+    else:
+        p = FeasiblePlanner(mode, make_transform(FACE_UP, where), X_EC)
+    # The bound is an upper bound of the reach: no sampled configuration exceeds it.
+    rng = np.random.default_rng(0)
+    reach = p.reach_bound_m()
+    assert max(np.linalg.norm(p.X_BE(rng.uniform(p.lower, p.upper))[:3, 3])
+               for _ in range(200)) <= reach
+    p.solve_ik = None           # any IK call would raise TypeError
+    with pytest.raises(InfeasibleError, match="target out of reach") as e:
+        p.sample_candidates(2, max_attempts=2)
+    assert "\n" not in str(e.value) and "m from the base origin" in str(e.value)
+
+
 def test_no_view_without_collision_is_one_line():
     # The board under a big box: every view of it puts the camera into the box.
     roof = Cell(0.0, (Box("roof", (-0.45, -0.15, 0.25), (1.2, 1.2, 0.3)),))

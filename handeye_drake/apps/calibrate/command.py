@@ -308,6 +308,16 @@ def run_calibrate_command(args) -> int:
         from ...calibration.compare import read_answer
         read_answer(args.compare, "--compare")   # a bad file stops before any work
     child_frame, mount_offset, optical_frame, mount_note = camera_mount_from_args(args)
+    from ...recorded.exports import _check_name
+    # Frame names checked before anything is computed or written (the exports would refuse
+    # them only after the fit, with calibration.json already on disk).
+    for option, value in (("--parent-frame", args.parent_frame), ("--child-frame", child_frame),
+                          ("--optical-frame", optical_frame)):
+        if value is not None:
+            _check_name(value, option)
+    if args.parent_frame is not None and args.parent_frame == child_frame:
+        raise ValueError(f"--child-frame: must differ from --parent-frame, both are "
+                         f"{child_frame!r}")
     out = prepare_output_dir(args.out, "calibrate", args.force)
     robot_scale, camera_scale = _scales(args)
     streams = read_inputs(
