@@ -106,24 +106,36 @@ def _monte_carlo(X_H, cov, p_H, n=40000, seed=0):
     return math.sqrt(np.mean(np.sum((p - p0) ** 2, axis=1)))
 
 
-def _covariance(seed):
-    rng = np.random.default_rng(seed)
-    A = rng.normal(size=(6, 6)) * np.r_[[1e-3] * 3, [4e-4] * 3][:, None]
-    C = A @ A.T
-    C[:3, :3] += np.diag([4e-6, 0.0, 0.0])          # one axis far worse: anisotropic
-    return C
+def _skew(v):
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def _covariance(X_H, q_tool):
+    """A covariance that tells points apart: rotation far worse about the camera's optical axis
+    than about the others (so a point on that axis is hardly moved by it, another point is), and
+    a translation error correlated with the rotation error so as to cancel most of the tool
+    point's (whose rotated camera coordinates are q_tool): a sign error doubles that term."""
+    u = X_H[:3, :3][:, 2]
+    S_th = 1e-6 * np.eye(3) + 2.5e-5 * np.outer(u, u)
+    B = 0.7 * _skew(q_tool)
+    S_n = 0.04e-6 * np.eye(3)
+    return np.block([[S_th, S_th @ B.T], [B @ S_th, B @ S_th @ B.T + S_n]])
 
 
 @pytest.mark.parametrize("mode", ["eye_in_hand", "eye_to_hand"])
 def test_task_space_sigmas_are_the_monte_carlo_of_the_points(mode):
     X_H = make_transform(rotation_exp(np.array([0.4, -1.1, 2.0])),
                          [0.04, -0.03, 0.06] if mode == "eye_in_hand" else [0.9, 0.4, 0.8])
-    cov = _covariance(1 if mode == "eye_in_hand" else 2)
     rng = np.random.default_rng(7)
-    X_BE = np.array([make_transform(rotation_exp(rng.normal(size=3)),
+    # A flange pointing down, turned ≤ ~20° about it: its poses (and their inverses) do not
+    # average out to the origin.
+    down = rotation_exp(np.array([math.pi, 0.0, 0.0]))
+    X_BE = np.array([make_transform(down @ rotation_exp(rng.normal(size=3) * 0.2),
                                     [0.3, -0.2, 0.4] + rng.normal(size=3) * 0.05)
                      for _ in range(8)])
     X_R = np.linalg.inv(X_BE) if mode == "eye_to_hand" else X_BE   # robot-side: X_EB
+    p_tool = np.zeros(3) if mode == "eye_in_hand" else X_BE[:, :3, 3].mean(axis=0)
+    cov = _covariance(X_H, p_tool - X_H[:3, 3])
     ts = task_sigmas(mode, X_H, cov, X_R)
     assert ts["point_in_front_distance_m"] == POINT_DISTANCE == 0.5
     # A point 0.5 m along the camera's optical axis (z_C), located in the parent frame.
@@ -131,7 +143,6 @@ def test_task_space_sigmas_are_the_monte_carlo_of_the_points(mode):
     assert ts["point_in_front_m"] == pytest.approx(mc_front, rel=0.02)
     # The tool point (the flange origin; eye-to-hand its mean position in B) as the camera
     # locates it: its camera coordinates from the estimate, through the perturbed transform.
-    p_tool = np.zeros(3) if mode == "eye_in_hand" else X_BE[:, :3, 3].mean(axis=0)
     p_C = X_H[:3, :3].T @ (p_tool - X_H[:3, 3])
     mc_tool = _monte_carlo(X_H, cov, p_C)
     assert ts["tool_centre_point_m"] == pytest.approx(mc_tool, rel=0.02)
