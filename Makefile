@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
 
-.PHONY: setup system-deps run test diagrams clean
+.PHONY: setup system-deps run test diagrams mutation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,22 @@ diagrams: setup
 
 test: setup
 	$(BIN)/python -m pytest
+
+# Mutation testing of estimation/ and calibration/ (docs/testing.md): a seeded sample of
+# MUTATION_PER_MODULE one-line mutants per module, each against its module's tests, stopped
+# after MUTATION_BUDGET_MIN minutes; reads out/mutation/report.txt. Not part of `make test`/CI.
+MUTATION_PER_MODULE ?= 6
+MUTATION_BUDGET_MIN ?= 30
+MUTATION_SEED ?= 0
+MUTATION_STAMP = $(VENV)/.mutation-installed
+
+$(MUTATION_STAMP): $(STAMP)
+	$(BIN)/pip install -e '.[test,mutation]'
+	touch $(MUTATION_STAMP)
+
+mutation: setup $(MUTATION_STAMP)
+	nice $(BIN)/python tools/mutation.py --per-module $(MUTATION_PER_MODULE) \
+	  --budget-min $(MUTATION_BUDGET_MIN) --seed $(MUTATION_SEED)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
