@@ -53,9 +53,15 @@ EXCLUDED_OPERATORS = [r".*_(BitOr|BitAnd|BitXor|LShift|RShift|FloorDiv|Mod|Is|Is
                       r"core/Variable.*", r"core/RemoveDecorator"]
 
 
-def _config(module: str, tests: list[str], timeout: float) -> str:
-    command = " ".join([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                        *tests])
+def _pytest(basetemp: Path, tests: list[str]) -> list[str]:
+    # A private --basetemp: pytest prunes the shared /tmp/pytest-of-USER directories, and a
+    # concurrent pytest run would otherwise fail a mutant's run at its end (a false kill).
+    return [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
+            f"--basetemp={basetemp}", *tests]
+
+
+def _config(module: str, tests: list[str], timeout: float, basetemp: Path) -> str:
+    command = " ".join(_pytest(basetemp, tests))
     ops = ", ".join(json.dumps(e) for e in EXCLUDED_OPERATORS)
     return (f'[cosmic-ray]\nmodule-path = "{module}"\ntimeout = {timeout:.0f}\n'
             f'excluded-modules = []\ntest-command = "{command}"\n\n'
@@ -93,7 +99,7 @@ def main(argv=None) -> int:
         print("cosmic-ray is not installed: pip install -e '.[mutation]' (make mutation does)",
               file=sys.stderr)
         return 2
-    out = Path(args.out)
+    out = Path(args.out).resolve()
     tree = out / "tree"
     _copy_tree(tree)
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1",
@@ -111,15 +117,14 @@ def main(argv=None) -> int:
             continue
         # The unmutated tests must pass; their time sets the per-mutant timeout.
         t0 = time.monotonic()
-        base = _run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                     *tests], tree, env)
+        base = _run(_pytest(out / "pytest-tmp", tests), tree, env)
         base_s = time.monotonic() - t0
         if base.returncode != 0:
             print(f"{name}: the unmutated tests fail; skipped\n{base.stdout[-2000:]}")
             continue
         cfg = out / f"{name}.toml"
         db = out / f"{name}.sqlite"
-        cfg.write_text(_config(module, tests, max(60.0, 3 * base_s)))
+        cfg.write_text(_config(module, tests, max(60.0, 3 * base_s), out / "pytest-tmp"))
         if db.exists():
             db.unlink()
         _run(cr + ["init", str(cfg), str(db)], tree, env).check_returncode()
@@ -183,6 +188,7 @@ def main(argv=None) -> int:
                                                  "per_module": args.per_module,
                                                  "minutes": minutes}, indent=1) + "\n")
     shutil.rmtree(tree, ignore_errors=True)
+    shutil.rmtree(out / "pytest-tmp", ignore_errors=True)
     return 0
 
 
