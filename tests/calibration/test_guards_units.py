@@ -135,3 +135,26 @@ def test_outlier_threshold_is_the_chi2_6_quantile():
     X_CT[19, 1, 3] += 0.0012
     r = _solve(X_BE, X_CT)
     assert list(np.flatnonzero(r.sample_used == "outlier")) == [7], r.sample_used
+
+
+def test_residual_summary_and_noise_in_their_units(clean):
+    # Recomputed here: the angle (deg) and distance (m) between each measured X_CT and the
+    # model's X_EC⁻¹ X_BE⁻¹ X_BT; the summary of the fitted samples is their median, RMS, max.
+    X_BE, X_CT = clean
+    r = _solve(X_BE, X_CT)
+    doc = r.to_json()
+    pred = np.linalg.inv(r.X_hand)[None] @ np.linalg.inv(X_BE) @ r.X_fixed[None]
+    R_err = np.transpose(pred[:, :3, :3], (0, 2, 1)) @ X_CT[:, :3, :3]
+    deg = np.degrees(np.arccos(np.clip((np.trace(R_err, axis1=1, axis2=2) - 1) / 2, -1, 1)))
+    m = np.linalg.norm(X_CT[:, :3, 3] - pred[:, :3, 3], axis=1)
+    fit = np.asarray(r.sample_used) == "fit"
+    s = doc["residuals"]["fit"]
+    assert s["count"] == fit.sum()
+    for key, v in (("rotation_deg", deg[fit]), ("translation_m", m[fit])):
+        assert s[key]["median"] == pytest.approx(np.median(v), rel=1e-6)
+        assert s[key]["rms"] == pytest.approx(np.sqrt(np.mean(v ** 2)), rel=1e-6)
+        assert s[key]["max"] == pytest.approx(np.max(v), rel=1e-6)
+    # The camera noise drawn: 0.05° and 0.3 mm per axis (estimates within 30 %).
+    n = doc["noise_per_axis"]
+    assert 0.035 < n["rotation_deg"] < 0.065 and 0.21e-3 < n["translation_m"] < 0.39e-3, n
+    assert np.all((np.array(n["rotation_deg_xyz"]) > 0.03) & (np.array(n["rotation_deg_xyz"]) < 0.07))

@@ -85,3 +85,13 @@ def test_an_image_whose_pose_is_9_sigma_off_is_rejected(scene):
     f = rp.fit_corners(d, X_H, X_F, V_TRUE, "none", pixel_sigma0=0.1)
     assert not f.image_used[k]
     assert f.image_used.sum() == data.num_images - 1
+
+
+def test_intrinsics_vector_and_matrix_are_opencvs_layout():
+    K = np.array([[612.0, 0.0, 321.0], [0.0, 611.0, 239.0], [0.0, 0.0, 1.0]])
+    d = np.array([-0.1, 0.05, 0.001, -0.0005, 0.002])
+    v = rp.intrinsics_vector(K, d)
+    np.testing.assert_array_equal(v, [612.0, 611.0, 321.0, 239.0, *d])
+    K2, d2 = rp.intrinsics_matrix(v)
+    np.testing.assert_array_equal(K2, K)
+    np.testing.assert_array_equal(np.ravel(d2), d)
