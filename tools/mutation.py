@@ -131,7 +131,12 @@ def main(argv=None) -> int:
         _run([sys.executable, "-m", "cosmic_ray.tools.filters.operators_filter", str(db),
               str(cfg)], tree, env)
         with use_db(str(db), WorkDB.Mode.open) as wdb:
-            pending = [w.job_id for w in wdb.pending_work_items]
+            # Job ids are random: sample from the mutants in source order, so that a seed
+            # always picks the same mutants of the same code.
+            items = sorted(wdb.pending_work_items, key=lambda w: (
+                w.mutations[0].start_pos, w.mutations[0].operator_name,
+                w.mutations[0].occurrence))
+            pending = [w.job_id for w in items]
             total = wdb.num_work_items
             keep = set(random.Random(f"{args.seed}:{module}").sample(
                 pending, min(args.per_module, len(pending))))
