@@ -72,6 +72,8 @@ def test_the_exported_camera_config_has_the_refined_intrinsics(cli_run, recordin
     _, truth, _ = recording
     code, doc, out = cli_run
     assert code == 0 and doc["intrinsics"]["refined"] != "none"
+    # The given focal lengths are 3 % long: the verdict says so (and nothing else).
+    assert [r["code"] for r in doc["verdict"]["reasons"]] == ["intrinsics"], doc["verdict"]
     fx, fy = _focal((out / "handeye_camera_config.yaml").read_text())
     _check_refined(fx, fy, doc, truth)
     assert fx == pytest.approx(doc["intrinsics"]["K"][0][0], abs=1e-6)
