@@ -18,7 +18,6 @@ import json
 import os
 import random
 import shutil
-import sqlite3  # noqa: F401  (cosmic-ray's session store; imported early for a clear error)
 import subprocess
 import sys
 import time

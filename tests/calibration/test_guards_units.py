@@ -4,7 +4,6 @@ changed 10× or a comparison inverted fails: the noise limit (--max-noise), the 
 hand-eye distance, the outlier fractions, the fewest samples, the held-out minimum, the
 split-half χ² bound."""
 
-import dataclasses
 import math
 
 import numpy as np
