@@ -157,3 +157,17 @@ def test_residual_summary_and_noise_in_their_units(clean):
     n = doc["noise_per_axis"]
     assert 0.035 < n["rotation_deg"] < 0.065 and 0.21e-3 < n["translation_m"] < 0.39e-3, n
     assert np.all((np.array(n["rotation_deg_xyz"]) > 0.03) & (np.array(n["rotation_deg_xyz"]) < 0.07))
+
+
+def test_candidate_poses_visited_within_the_given_distance_and_angle():
+    from handeye_drake.calibration.session import CandidatePoses
+    cands, _ = _samples(3, 8, X_EC)
+    p = CandidatePoses(cands, X_EC, X_BT, visited_deg=0.5, visited_m=0.002)
+    near = [make_transform(rotation_exp(np.array([0.0, 0.0, math.radians(0.3)])) @ C[:3, :3],
+                           C[:3, 3] + [0.0012, 0.0, 0.0]) for C in cands]
+    assert p(near) is None                     # every candidate within 2 mm and 0.5°: visited
+    far_t = make_transform(cands[1][:3, :3], cands[1][:3, 3] + [0.0, 0.003, 0.0])
+    far_r = make_transform(rotation_exp(np.array([math.radians(0.7), 0.0, 0.0]))
+                           @ cands[1][:3, :3], cands[1][:3, 3])
+    for other in (far_t, far_r):
+        assert p([near[0], near[2], other])["index"] == 1
