@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN     = $(VENV)/bin
 STAMP   = $(VENV)/.installed
 
-.PHONY: setup system-deps run test diagrams docs docs-check docs-check-full docs-regenerate clean
+.PHONY: setup system-deps run test diagrams docs docs-check docs-check-full docs-regenerate mutation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -63,6 +63,22 @@ docs-check-full: setup
 
 docs-regenerate: setup
 	$(BIN)/python tools/docs_check.py --regenerate
+
+# Mutation testing of estimation/ and calibration/ (docs/testing.md): a seeded sample of
+# MUTATION_PER_MODULE one-line mutants per module, each against its module's tests, stopped
+# after MUTATION_BUDGET_MIN minutes; reads out/mutation/report.txt. Not part of `make test`/CI.
+MUTATION_PER_MODULE ?= 6
+MUTATION_BUDGET_MIN ?= 30
+MUTATION_SEED ?= 0
+MUTATION_STAMP = $(VENV)/.mutation-installed
+
+$(MUTATION_STAMP): $(STAMP)
+	$(BIN)/pip install -e '.[test,mutation]'
+	touch $(MUTATION_STAMP)
+
+mutation: setup $(MUTATION_STAMP)
+	nice $(BIN)/python tools/mutation.py --per-module $(MUTATION_PER_MODULE) \
+	  --budget-min $(MUTATION_BUDGET_MIN) --seed $(MUTATION_SEED)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

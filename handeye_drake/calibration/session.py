@@ -443,7 +443,8 @@ class CalibrationSession:
     def _sigmas(self, X_hand, cov):
         rot = math.degrees(_radius(cov[:3, :3]))
         tra = 1000.0 * _radius(cov[3:, 3:])
-        X_R = np.array(self.X_BE) if self.mode == "eye_to_hand" else None
+        # task_sigmas takes the robot-side poses: X_EB for eye-to-hand.
+        X_R = np.linalg.inv(np.array(self.X_BE)) if self.mode == "eye_to_hand" else None
         ts = task_sigmas(self.mode, X_hand, cov, X_R)
         return rot, tra, 1000.0 * ts["tool_centre_point_m"], 1000.0 * ts["point_in_front_m"]
 

@@ -24,7 +24,9 @@ def task_sigmas(mode: str, X_H, covariance, X_R=None) -> dict:
             np.linalg.inv(np.asarray(X_R, float))[:, :3, 3], axis=0)
     return {"point_in_front_m": point_sigma(covariance, p_front),
             "point_in_front_distance_m": POINT_DISTANCE,
-            "tool_centre_point_m": point_sigma(covariance, X_H[:3, 3] - p_tcp),
+            # The tool point as the camera locates it: at p_C = R̂ᵀ (p_tcp − t̂) in C, so the
+            # rotated point to pass is p_tcp − t̂ (its sign sets the rotation–translation term).
+            "tool_centre_point_m": point_sigma(covariance, p_tcp - X_H[:3, 3]),
             "definition": "RMS radius (√trace of the 3×3 covariance) of the point's position "
                           "error through the calibrated transform"}
 

@@ -910,10 +910,11 @@ def _parse_table(text, source: str, kind: str, translation_scale, max_translatio
         max_translation = _finite_positive(max_translation, "max_translation")
     table = _Table(kind, source)
     data = _normalize_breaks(_as_bytes(text, source))
-    # At most one pose per line, and a data line holds ≥ 8 (tum) or 16 (csv) numbers with
-    # their separators: the arrays start small and grow by doubling up to that bound, so blank
-    # lines or comments cost nothing (200 MiB of blank lines once asked for 25 GiB).
-    bound = min(data.count(b"\n") + 1, len(data) // (16 if kind == "tum" else 32) + 1)
+    # At most one pose per line, and a data line holds ≥ 8 (tum), 6 (csv-rotvec, csv-euler) or
+    # 16 (csv) numbers of ≥ 1 byte each with their separators: the arrays start small and grow
+    # by doubling up to that bound, so blank lines or comments cost nothing (200 MiB of blank
+    # lines once asked for 25 GiB).
+    bound = min(data.count(b"\n") + 1, len(data) // (2 * min(table.counts)) + 1)
     capacity = min(bound, _FIRST_CAPACITY)
     P, t = np.empty((capacity, 4, 4)), np.empty(capacity)
     lines = np.empty(capacity, dtype=np.int64)
@@ -922,7 +923,7 @@ def _parse_table(text, source: str, kind: str, translation_scale, max_translatio
     for v, numbers in _table_chunks(table, data, progress):
         m = len(v)
         if n + m > capacity:
-            capacity = min(bound, max(n + m, 2 * capacity))
+            capacity = max(n + m, min(bound, 2 * capacity))
             P, t, lines = (np.resize(a, (capacity,) + a.shape[1:]) for a in (P, t, lines))
         chunk_lines = LineNumbers(numbers)
         fin = np.isfinite(v).all(axis=1)
