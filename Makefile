@@ -43,8 +43,9 @@ diagrams: setup
 	$(BIN)/python diagrams/calibrator_alone.py
 	$(BIN)/python diagrams/rendered_loop.py
 
+# One worker per core, a test file per worker (module-scoped fixtures are built once per file).
 test: setup
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadfile
 
 # The documentation (tools/docs_check.py, docs/writing-docs.md). `docs` builds the site from
 # docs/ into out/site (--strict: a broken link or anchor fails). `docs-check` runs every
