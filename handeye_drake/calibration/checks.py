@@ -241,21 +241,8 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
         def cost(log_s):
             scaled = _stream(with_scaled_translations(c.poses, math.exp(log_s)), c)
             return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
-        lo, hi = (math.log(v) for v in SCALE_RANGE)
-        g = (math.sqrt(5.0) - 1.0) / 2.0
-        a, b = lo, hi
-        x1, x2 = b - g * (b - a), a + g * (b - a)
-        f1, f2 = cost(x1), cost(x2)
-        for _ in range(14):  # bracket 0.69 · 0.618¹⁴ ≈ 1e-3 in log s
-            if f1 < f2:
-                b, x2, f2 = x2, x1, f1
-                x1 = b - g * (b - a)
-                f1 = cost(x1)
-            else:
-                a, x1, f1 = x1, x2, f2
-                x2 = a + g * (b - a)
-                f2 = cost(x2)
-        factor = math.exp(0.5 * (a + b))
+        # bracket 0.69 · 0.618¹⁴ ≈ 1e-3 in log s
+        factor = _golden_log(cost, *SCALE_RANGE, iterations=14)
         if abs(factor - 1.0) <= QUICK_SCALE_RESOLUTION:
             # The best scale is the one given, to what the quick fit on a subset resolves
             # (the profile of ``pipeline.camera_scale_test`` measures small scales): not a
