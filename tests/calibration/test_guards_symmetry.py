@@ -37,3 +37,19 @@ def test_pair_cost_of_a_planted_angle_and_slide(mode):
     assert cost[0, 1, 0] == pytest.approx(0.5 ** 2 + (2.0 / 5.0) ** 2, rel=1e-3)
     assert cost[0, 1, 1] > 10.0
     assert cost[0, 2, 0] < 1e-9 and cost[1, 1, 1] == 0.0
+
+
+def test_the_turn_most_views_are_detected_in_is_as_detected():
+    # The first view (the first reference of the search) detected turned, the others not: the
+    # labels undo the turn in the first view only (not in all the others, relative to it).
+    from handeye_drake.calibration.symmetry import resolve
+    from handeye_drake.vision.targets import target_symmetries
+    from tests.calibration.test_symmetry import _views
+    X_BE, X_true = _views("eye_in_hand", 8, np.random.default_rng(4))
+    turns = np.array([np.eye(4)] + [G for G, _ in target_symmetries("chessboard:8x6:0.025")])
+    applied = np.zeros(8, int)
+    applied[0] = 1
+    X_CT = np.einsum("nab,nbc->nac", X_true, turns[applied])
+    labels, decided = resolve(X_BE, X_CT, turns, "eye_in_hand")
+    assert decided.all()
+    np.testing.assert_array_equal(labels, applied)
