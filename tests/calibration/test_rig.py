@@ -67,6 +67,10 @@ def test_three_camera_mixed_rig_within_sigma(rig):
     # The camera-to-camera σ has no robot term: it is tighter than either camera's.
     assert np.trace(C[3:, 3:]) < np.trace(r.cameras["wrist"].covariance[3:, 3:])
     assert np.linalg.norm(tangent(r.X_board, np.asarray(truth["X_BT"]))[3:]) < 0.001
+    # The two moving cameras agree about the board: χ² on 6 dof under scipy's 10⁻⁴ point.
+    for name in ("wrist", "wrist2"):
+        a = r.cameras[name].agreement
+        assert a["threshold"] == pytest.approx(chi2.isf(1e-4, 6)) and a["chi2"] < a["threshold"]
     j = r.to_json()
     assert set(j["cameras"]) == {"wrist", "wrist2", "cell"} and j["relative"][0]["from"] == "wrist"
     texts = r.export("cell", "urdf,ros2")
