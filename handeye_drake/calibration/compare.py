@@ -81,6 +81,10 @@ def _answer(source, name: str) -> tuple[str, np.ndarray, np.ndarray, str]:
                 np.asarray(source.covariance, float), source.verdict.status)
     if isinstance(source, (str, Path)):
         path = Path(source)
+        if path.is_dir():  # an output folder: its calibration.json
+            if not (path / "calibration.json").is_file():
+                raise ValueError(f"{name}: {path} is a folder without a calibration.json")
+            path = path / "calibration.json"
         if not path.is_file():
             raise ValueError(f"{name}: no such file: {path}")
         if path.stat().st_size > MAX_JSON_BYTES:
