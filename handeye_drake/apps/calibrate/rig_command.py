@@ -30,6 +30,56 @@ from pathlib import Path
 
 from ...calibration.rig import RigCamera, calibrate_rig
 
+_RIG_KEYS = ("robot", "target", "board", "cameras")
+_CAMERA_KEYS = ("images", "mount", "intrinsics")
+
+
+def _unique_key_loader():
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        """A safe loader that refuses a key given twice (YAML keeps the last one silently: two
+        cameras of one name would be one camera)."""
+
+    def mapping(loader, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} given twice", key_node.start_mark)
+            seen.add(key)
+        return loader.construct_mapping(node, deep=deep)
+
+    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return Loader
+
+
+def check_rig_camera(cam: RigCamera, where: str) -> None:
+    """Bad input as an error naming ``where`` before any fit: a camera folder without images, an
+    intrinsics file that does not exist or does not read (they would become a FAIL verdict)."""
+    from ...calibration.inputs import image_paths
+    from ...vision.intrinsics import load_intrinsics
+    if cam.topic is None:
+        try:
+            image_paths(cam.images)
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
+    intr = cam.intrinsics
+    if isinstance(intr, (str, Path)):
+        text = str(intr).strip()
+        try:
+            if Path(text).is_file():
+                load_intrinsics(text)
+            elif "," not in text or "/" in text or Path(text).suffix.lower() in (
+                    ".yaml", ".yml", ".xml"):
+                load_intrinsics(text)  # raises: no such file, and not a spec
+        except ValueError as e:
+            if Path(text).is_file() and "no image width" in str(e):
+                return  # a file without the image size: taken from the images later
+            raise ValueError(f"{where}: {e}") from None
+
+
 _NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 
 
@@ -55,23 +105,36 @@ def parse_rig_camera(text: str, bag=None) -> RigCamera:
         raise ValueError(f"--camera {text}: {folder} not found")
     try:
         if bag is not None:
-            return RigCamera(name, bag, mount, intrinsics, topic=folder)
-        return RigCamera(name, folder, mount, intrinsics)
+            cam = RigCamera(name, bag, mount, intrinsics, topic=folder)
+        else:
+            cam = RigCamera(name, folder, mount, intrinsics)
     except ValueError as e:
         raise ValueError(f"--camera {text}: {e}") from None
+    check_rig_camera(cam, f"--camera {text}")
+    return cam
 
 
 def read_rig_yaml(path) -> dict:
     """{"robot", "target", "board", "cameras": [RigCamera]} of a rig YAML (module docstring)."""
     import yaml
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"--rig {path}: a folder; expected the rig's YAML file")
     try:
-        doc = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise ValueError(f"--rig {path}: {e}") from None
+        doc = yaml.load(p.read_text(encoding="utf-8"), Loader=_unique_key_loader())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        raise ValueError(f"--rig {path}: {' '.join(str(e).split())}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("cameras"), dict) or not doc["cameras"]:
         raise ValueError(f"--rig {path}: expected a mapping with 'cameras: {{NAME: {{images: "
-                         "DIR, mount: hand|cell, intrinsics: FILE}}}}'")
+                         "DIR, mount: hand|cell, intrinsics: FILE}}'")
+    # A misspelt key (bord:, intrinsic:) would silently fall back to a default.
+    unknown = sorted(str(k) for k in doc if k not in _RIG_KEYS)
+    if unknown:
+        raise ValueError(f"--rig {path}: unknown key {', '.join(map(repr, unknown))} (expected "
+                         f"{', '.join(_RIG_KEYS)})")
+    for key in ("robot", "target", "board"):
+        if doc.get(key) is not None and not isinstance(doc[key], str):
+            raise ValueError(f"--rig {path}: {key}: expected a string, got {doc[key]!r}")
     base = p.parent
 
     def rel(v):
@@ -82,6 +145,11 @@ def read_rig_yaml(path) -> dict:
     for name, c in doc["cameras"].items():
         if not isinstance(c, dict) or "images" not in c:
             raise ValueError(f"--rig {path}: camera {name}: expected {{images: DIR, …}}")
+        unknown = sorted(str(k) for k in c if k not in _CAMERA_KEYS)
+        if unknown:
+            raise ValueError(f"--rig {path}: camera {name}: unknown key "
+                             f"{', '.join(map(repr, unknown))} (expected "
+                             f"{', '.join(_CAMERA_KEYS)})")
         intr = c.get("intrinsics")
         if intr is not None and not Path(rel(intr)).exists():
             intr_arg = str(intr)              # an inline spec (fx,fy,cx,cy,…)
@@ -91,6 +159,7 @@ def read_rig_yaml(path) -> dict:
             cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg))
         except ValueError as e:
             raise ValueError(f"--rig {path}: {e}") from None
+        check_rig_camera(cams[-1], f"--rig {path}: camera {name}")
     return {"robot": rel(doc.get("robot")), "target": doc.get("target"),
             "board": doc.get("board"), "cameras": cams}
 
