@@ -65,6 +65,14 @@ def check_rig_camera(cam: RigCamera, where: str) -> None:
             image_paths(cam.images)
         except ValueError as e:
             raise ValueError(f"{where}: {e}") from None
+    else:
+        from ...recorded.bags import (COMPRESSED_IMAGE_TYPE, IMAGE_TYPE, bag_topics,
+                                      require_topic)
+        try:
+            require_topic(str(cam.images), bag_topics(cam.images), cam.topic,
+                          (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), "image topic")
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
     intr = cam.intrinsics
     if isinstance(intr, (str, Path)):
         text = str(intr).strip()
@@ -190,6 +198,14 @@ def run_rig_command(args, rig_cameras, options) -> int:
     names = [c.name for c in cams]
     if len(set(names)) != len(names):
         raise ValueError(f"--camera: camera names must differ, got {', '.join(names)}")
+    # Two cameras cannot take the same images: one source given twice is a typo.
+    sources = {}
+    for c in cams:
+        key = (str(Path(c.images).resolve()), c.topic)
+        if key in sources:
+            raise ValueError(f"--camera: cameras {sources[key]} and {c.name} read the same "
+                             f"{'topic ' + c.topic if c.topic else 'images ' + str(c.images)}")
+        sources[key] = c.name
     out = prepare_output_dir(args.out, "calibrate", args.force)
     result = calibrate_rig(cams, robot, target, board, options,
                            robot_frames=args.robot_frames)
