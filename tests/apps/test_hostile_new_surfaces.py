@@ -1,0 +1,149 @@
+"""Hostile-but-plausible inputs to the newest command-line surfaces (circle-grid targets,
+``calibrate --compare``, the rig CLI, ``session``) and to ``calibrate()`` in Python: each ends in
+one error line naming the argument (exit 2) or a sensible result, and no user file is touched.
+Every case here was a traceback, a message naming nothing, or a silent wrong answer before."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from handeye_drake.apps.cli import main
+
+DATA = Path(__file__).resolve().parents[2] / "handeye_drake" / "data" / "example_images"
+TARGET = "charuco:7x5:0.04:0.03:DICT_5X5_100"
+
+
+def _error(capsys) -> str:
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# --- handeye-drake target: circle grids -----------------------------------------------------
+
+@pytest.mark.parametrize("spec", ["circles:4x11:0.02", "acircles:4x11:0.02:0.02:white"])
+def test_target_writes_circle_grids(tmp_path, capsys, spec):
+    # Was "error: min() arg is an empty sequence": the printable-size check knew squares,
+    # markers and tags but not a circle's diameter.
+    assert main(["target", spec, "--out", str(tmp_path / "t")]) == 0
+    assert "circle diameter" in capsys.readouterr().out
+    assert (tmp_path / "t" / "target.png").is_file()
+
+
+def test_target_refuses_circles_too_small_to_print(tmp_path, capsys):
+    assert main(["target", "circles:4x11:0.002", "--out", str(tmp_path / "t")]) == 2
+    assert "its diameter would be 1 mm" in _error(capsys)
+
+
+# --- calibrate --compare --------------------------------------------------------------------
+
+def test_compare_reads_an_output_folder(tmp_path):
+    from handeye_drake.calibration.compare import read_answer
+    (tmp_path / "other").mkdir()
+    with pytest.raises(ValueError, match="--compare: .*a folder without a calibration.json"):
+        read_answer(tmp_path / "other")
+    doc = {"mode": "eye_in_hand", "X_EC": {
+        "matrix": [[1, 0, 0, 0.1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+        "std": {"covariance": (1e-6 * __import__("numpy").eye(6)).tolist()}},
+        "verdict": {"status": "OK"}}
+    (tmp_path / "other" / "calibration.json").write_text(json.dumps(doc))
+    mode, X, _, status = read_answer(tmp_path / "other")
+    assert mode == "eye_in_hand" and X[0, 3] == 0.1 and status == "OK"
+
+
+# --- the rig CLI ----------------------------------------------------------------------------
+
+@pytest.fixture
+def rig_dir(tmp_path):
+    """Two camera folders holding image names only (every case fails before an image is read)
+    and a robot file: what the rig's input checks look at."""
+    rig = tmp_path / "rig"
+    for cam in ("wrist", "cell"):
+        (rig / cam).mkdir(parents=True)
+        for k in range(3):
+            (rig / cam / f"img_{k:03d}.png").write_bytes(b"")
+        shutil.copy(DATA / "intrinsics.yaml", rig / cam / "intrinsics.yaml")
+    shutil.copy(DATA / "robot_poses.tum", rig / "robot_poses.tum")
+    (rig / "empty").mkdir()
+    return rig
+
+
+def _rig_yaml(rig, cameras: str, extra: str = "") -> Path:
+    p = rig / "rig.yaml"
+    p.write_text(f"robot: robot_poses.tum\ntarget: {TARGET}\n{extra}cameras:\n{cameras}")
+    return p
+
+
+@pytest.mark.parametrize("cameras, extra, expected", [
+    # YAML keeps the last of two equal keys: one camera silently calibrated under the other's
+    # name from the other's folder.
+    ("  wrist: {images: wrist, mount: hand}\n  wrist: {images: cell, mount: cell}\n", "",
+     "key 'wrist' given twice"),
+    # Misspelt keys fell back silently to defaults (board in the cell, intrinsics calibrated).
+    ("  wrist: {images: wrist}\n", "bord: hand\n", "unknown key 'bord'"),
+    ("  wrist: {images: wrist, intrinsic: wrist/intrinsics.yaml}\n", "",
+     "camera wrist: unknown key 'intrinsic'"),
+    # A folder without images and a missing intrinsics file were FAIL verdicts (exit 1).
+    ("  wrist: {images: wrist}\n  blind: {images: empty}\n", "",
+     "camera blind: .*holds no image"),
+    ("  wrist: {images: wrist, intrinsics: nowhere.yaml}\n", "",
+     "camera wrist: intrinsics .*nowhere.yaml.*no such file"),
+    ("  wrist: {images: wrist}\n", "robot: [1, 2]\n", "key 'robot' given twice"),
+    ("  wrist: {images: wrist}\n", "board: 3\n", "board: expected a string"),
+])
+def test_rig_yaml_bad_input(rig_dir, tmp_path, capsys, cameras, extra, expected):
+    import re
+    rig = _rig_yaml(rig_dir, cameras, extra)
+    assert main(["calibrate", "--rig", str(rig), "--out", str(tmp_path / "out")]) == 2
+    line = _error(capsys)
+    assert line.startswith(f"handeye-drake: error: --rig {rig}") and re.search(expected, line)
+    assert not (tmp_path / "out").exists()
+
+
+def test_rig_yaml_folder(rig_dir, capsys):
+    assert main(["calibrate", "--rig", str(rig_dir), "--out", str(rig_dir / "o")]) == 2
+    assert "a folder; expected the rig's YAML file" in _error(capsys)
+
+
+@pytest.mark.parametrize("cameras, expected", [
+    (["wrist:{r}/wrist:hand:{r}/nowhere.yaml"], "--camera wrist:.*nowhere.yaml.*no such file"),
+    (["wrist:{r}/empty"], "--camera wrist:.*holds no image"),
+    (["wrist:{r}/wrist", "w2:{r}/wrist/"], "--camera: cameras wrist and w2 read the same images"),
+])
+def test_rig_cameras_bad_input(rig_dir, tmp_path, capsys, cameras, expected):
+    import re
+    argv = ["calibrate", "--robot", str(rig_dir / "robot_poses.tum"), "--target", TARGET,
+            "--out", str(tmp_path / "out")]
+    for c in cameras:
+        argv += ["--camera", c.format(r=rig_dir)]
+    assert main(argv) == 2
+    assert re.search(expected, _error(capsys))
+
+
+@pytest.fixture(scope="module")
+def example_bag(tmp_path_factory):
+    from handeye_drake.recorded.example_bag import write_example_bag
+    path = tmp_path_factory.mktemp("bag") / "cell.bag"
+    write_example_bag(path)
+    return path
+
+
+@pytest.mark.parametrize("cameras, expected", [
+    # A topic not in the bag was a FAIL verdict after reading the other cameras' images.
+    (["wrist:/no/such/topic:hand", "cell:/camera/color/image_raw:cell"],
+     "--camera wrist:/no/such/topic:hand: .*no topic '/no/such/topic'"),
+    (["a:/camera/color/image_raw", "b:/camera/color/image_raw"],
+     "--camera: cameras a and b read the same topic"),
+])
+def test_rig_bag_bad_topics(example_bag, tmp_path, capsys, cameras, expected):
+    import re
+    argv = ["calibrate", "--bag", str(example_bag), "--robot-frames", "base_link:tool0",
+            "--target", TARGET, "--out", str(tmp_path / "out")]
+    for c in cameras:
+        argv += ["--camera", c]
+    assert main(argv) == 2
+    assert re.search(expected, _error(capsys))
