@@ -147,3 +147,38 @@ def test_rig_bag_bad_topics(example_bag, tmp_path, capsys, cameras, expected):
         argv += ["--camera", c]
     assert main(argv) == 2
     assert re.search(expected, _error(capsys))
+
+
+# --- session --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, expected", [
+    # NaN compared false with every elapsed time: --follow never gave up.
+    (["--follow", "--timeout-s", "nan"], "argument --idle-timeout/--timeout-s: expected a "
+                                         "positive number, got 'nan'"),
+    (["--follow", "--poll-s", "inf"], "argument --poll-s: expected a positive number"),
+    # Was "n: expected an integer ≥ 1", naming no argument.
+    (["--feasible", "--num-candidates", "-3"], "argument --num-candidates: expected a positive"),
+])
+def test_session_bad_numbers(tmp_path, capsys, argv, expected):
+    samples = tmp_path / "samples.txt"
+    samples.write_text("0 0 0.5 0 0 0 1  0 0 0.5 0 0 0 1\n")
+    assert main(["session", "--samples", str(samples), *argv,
+                 "--out", str(tmp_path / "out")]) == 2
+    assert expected in _error(capsys)
+
+
+@pytest.mark.parametrize("content, expected", [
+    (b"\xff\xfe\x00garbage\n", "line 1 is not UTF-8 text"),       # was the codec's message alone
+    (b"1" * 1_200_000, "line 1 is longer than 1000000 characters"),  # was read whole
+    (None, "a folder; expected the samples file"),                  # was "file not found"
+])
+def test_session_samples_not_a_sample_file(tmp_path, capsys, content, expected):
+    samples = tmp_path / "samples.txt"
+    if content is None:
+        samples.mkdir()
+    else:
+        samples.write_bytes(content)
+    assert main(["session", "--samples", str(samples), "--out", str(tmp_path / "out")]) == 2
+    line = _error(capsys)
+    assert line.startswith(f"handeye-drake: error: --samples {samples}") and expected in line
+    assert content is None or samples.read_bytes() == content
