@@ -182,3 +182,16 @@ def test_session_samples_not_a_sample_file(tmp_path, capsys, content, expected):
     line = _error(capsys)
     assert line.startswith(f"handeye-drake: error: --samples {samples}") and expected in line
     assert content is None or samples.read_bytes() == content
+
+
+# --- calibrate() in Python ------------------------------------------------------------------
+
+def test_calibrate_refuses_complex_poses():
+    # A complex array was cast to float with a warning: its imaginary parts dropped, an answer
+    # reported OK from numbers that were not the poses given.
+    import numpy as np
+    from handeye_drake.calibration import calibrate
+    X = np.tile(np.eye(4), (5, 1, 1)).astype(complex)
+    X[:, 0, 3] += 1j
+    with pytest.raises(ValueError, match=r"^robot: .*got ndarray of complex128"):
+        calibrate(X, np.tile(np.eye(4), (5, 1, 1)))
