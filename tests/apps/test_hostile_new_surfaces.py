@@ -195,3 +195,20 @@ def test_calibrate_refuses_complex_poses():
     X[:, 0, 3] += 1j
     with pytest.raises(ValueError, match=r"^robot: .*got ndarray of complex128"):
         calibrate(X, np.tile(np.eye(4), (5, 1, 1)))
+
+
+# --- plan -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, expected", [
+    # Were "max_angle_deg: …" / "max_distance: …" / "CameraIntrinsics.width: …", naming
+    # no argument of the command.
+    (["--max-angle", "nan"], "argument --max-angle: expected a positive number"),
+    (["--max-angle", "720"], "argument --max-angle: expected an angle in (0, 180] degrees"),
+    (["--max-distance", "inf"], "argument --max-distance: expected a positive number"),
+    (["--intrinsics", "800,800,320,240,0,0"], "--intrinsics 800,800,320,240,0,0: "),
+])
+def test_plan_bad_numbers(tmp_path, capsys, argv, expected):
+    assert main(["plan", "--around", "0.4,0,0.5,1,0,0,0",
+                 "--hand-eye", "0.045,-0.012,0.068,0,0,0.7071068,0.7071068",
+                 "--target", "0.4,0,0", *argv, "--out", str(tmp_path / "p")]) == 2
+    assert expected in _error(capsys)
