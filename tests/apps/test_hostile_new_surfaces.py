@@ -212,3 +212,34 @@ def test_plan_bad_numbers(tmp_path, capsys, argv, expected):
                  "--hand-eye", "0.045,-0.012,0.068,0,0,0.7071068,0.7071068",
                  "--target", "0.4,0,0", *argv, "--out", str(tmp_path / "p")]) == 2
     assert expected in _error(capsys)
+
+
+def test_rig_camera_names_as_in_the_yaml(rig_dir, tmp_path, capsys):
+    # A unicode name was taken for a camera pose file ("a rig's cameras are NAME:DIR; a camera
+    # pose file calibrates one camera") though the rig YAML takes it; a bad name before a
+    # folder is named as a bad name.
+    from handeye_drake.apps.calibrate.rig_command import is_rig_camera
+    assert is_rig_camera(f"kaméra:{rig_dir / 'wrist'}")
+    assert not is_rig_camera(str(DATA / "robot_poses.tum"))
+    argv = ["calibrate", "--robot", str(rig_dir / "robot_poses.tum"), "--target", TARGET,
+            "--camera", f"../x:{rig_dir / 'wrist'}", "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert "camera name: expected letters, digits, _ or -, got '../x'" in _error(capsys)
+
+
+def test_compare_with_a_rig(tmp_path, capsys):
+    from handeye_drake.calibration.compare import read_answer
+    import numpy as np
+    X = np.eye(4)
+    X[0, 3] = 0.05
+    cam = {"camera": "wrist", "mount": "hand", "mode": "eye_in_hand",
+           "verdict": {"status": "OK", "reasons": []}, "X_EC": X.tolist(),
+           "covariance": (1e-6 * np.eye(6)).tolist()}
+    (tmp_path / "wrist.json").write_text(json.dumps(cam))
+    # A rig camera's NAME/calibration.json was "not a calibration.json".
+    mode, X_read, C, status = read_answer(tmp_path / "wrist.json")
+    assert mode == "eye_in_hand" and np.allclose(X_read, X) and C[0, 0] == 1e-6
+    (tmp_path / "rig.json").write_text(json.dumps({"rig": {}, "cameras": {"wrist": cam},
+                                                   "relative": []}))
+    with pytest.raises(ValueError, match="a rig's calibration.json; give one camera's.*wrist"):
+        read_answer(tmp_path / "rig.json")

@@ -88,15 +88,18 @@ def check_rig_camera(cam: RigCamera, where: str) -> None:
             raise ValueError(f"{where}: {e}") from None
 
 
-_NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 
 
 def is_rig_camera(text: str) -> bool:
     """``--camera`` names a rig camera (NAME:DIR…) rather than a camera pose file: a name before
     the first colon and no file of that whole name."""
     name, sep, rest = str(text).partition(":")
-    return bool(sep and name and set(name) <= _NAME_CHARS and rest
-                and not Path(text).is_file())
+    if not (sep and name and rest) or Path(text).is_file():
+        return False
+    # The names RigCamera takes (unicode letters too, as in a rig YAML); a name it refuses
+    # before an existing folder is a rig camera with a bad name, said so by RigCamera.
+    return (name.replace("_", "").replace("-", "").isalnum()
+            or Path(rest.split(":")[0]).is_dir())
 
 
 def parse_rig_camera(text: str, bag=None) -> RigCamera:
