@@ -243,3 +243,27 @@ def test_compare_with_a_rig(tmp_path, capsys):
                                                    "relative": []}))
     with pytest.raises(ValueError, match="a rig's calibration.json; give one camera's.*wrist"):
         read_answer(tmp_path / "rig.json")
+
+
+# --- calibrate: a folder where a file is expected -------------------------------------------
+
+@pytest.mark.parametrize("which, expected", [
+    # Was "…: cannot infer the format from the extension ''" (a wrong cause, no argument).
+    ("--robot", "--robot {d}: a folder; expected the robot pose file"),
+    # Was "intrinsics '…': no such file, and not a fx,fy,cx,cy… string".
+    ("--intrinsics", "--intrinsics {d}: a folder; expected an intrinsics file"),
+])
+def test_calibrate_images_folder_for_a_file(tmp_path, capsys, which, expected):
+    args = {"--images": str(DATA), "--robot": str(DATA / "robot_poses.tum"),
+            "--target": TARGET, "--intrinsics": str(DATA / "intrinsics.yaml")}
+    args[which] = str(DATA)
+    argv = ["calibrate", *[x for kv in args.items() for x in kv], "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert expected.format(d=DATA) in _error(capsys)
+
+
+def test_calibrate_camera_pose_folder(tmp_path, capsys):
+    argv = ["calibrate", "--robot", str(DATA.parent / "example_robot.tum"),
+            "--camera", str(tmp_path), "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert f"--camera {tmp_path}: a folder; expected the camera pose file" in _error(capsys)
