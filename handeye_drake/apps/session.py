@@ -340,7 +340,11 @@ def run_session(args) -> int:
     else:
         next_pose = _planner(args, mode)
     if args.resume:
-        session = CalibrationSession.resume(args.state, next_pose)
+        try:
+            session = CalibrationSession.resume(args.state, next_pose)
+        except ValueError as e:  # the library names its argument "state"
+            msg = str(e)
+            raise ValueError("--" + msg if msg.startswith("state: ") else msg) from None
         if session.mode != mode:
             raise ValueError(f"--mode: the saved session is {session.mode}, not {mode}")
         print(f"resumed {len(session.X_BE)} samples from {args.state}")

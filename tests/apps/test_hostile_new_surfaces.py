@@ -267,3 +267,22 @@ def test_calibrate_camera_pose_folder(tmp_path, capsys):
             "--camera", str(tmp_path), "--out", str(tmp_path / "o")]
     assert main(argv) == 2
     assert f"--camera {tmp_path}: a folder; expected the camera pose file" in _error(capsys)
+
+
+def test_rig_yaml_too_large(tmp_path, capsys):
+    big = tmp_path / "rig.yaml"
+    big.write_text("# " + "x" * 1_100_000 + "\n")
+    assert main(["calibrate", "--rig", str(big), "--out", str(tmp_path / "o")]) == 2
+    assert "larger than 1000000 bytes; not a rig YAML" in _error(capsys)
+
+
+def test_session_resume_names_state(tmp_path, capsys):
+    samples = tmp_path / "samples.txt"
+    samples.write_text("0 0 0.5 0 0 0 1  0 0 0.5 0 0 0 1\n")
+    state = tmp_path / "calibration.json"
+    state.write_text('{"mode": "eye_in_hand"}')
+    assert main(["session", "--samples", str(samples), "--resume", "--state", str(state),
+                 "--out", str(tmp_path / "o")]) == 2
+    assert _error(capsys).startswith("handeye-drake: error: --state: calibration.json is not a "
+                                     "session state")
+    assert state.read_text() == '{"mode": "eye_in_hand"}'

@@ -30,6 +30,8 @@ from pathlib import Path
 
 from ...calibration.rig import RigCamera, calibrate_rig
 
+#: Largest rig YAML read (bytes): a rig of many cameras is a few kB.
+_MAX_RIG_BYTES = 1_000_000
 _RIG_KEYS = ("robot", "target", "board", "cameras")
 _CAMERA_KEYS = ("images", "mount", "intrinsics")
 
@@ -131,6 +133,8 @@ def read_rig_yaml(path) -> dict:
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"--rig {path}: a folder; expected the rig's YAML file")
+    if p.is_file() and p.stat().st_size > _MAX_RIG_BYTES:
+        raise ValueError(f"--rig {path}: larger than {_MAX_RIG_BYTES} bytes; not a rig YAML")
     try:
         doc = yaml.load(p.read_text(encoding="utf-8"), Loader=_unique_key_loader())
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
