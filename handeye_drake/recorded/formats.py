@@ -1471,8 +1471,6 @@ def read_poses(path, stream: str, fmt: str | None = None, camera_in_target: bool
             docstring.
     """
     raw = path if isinstance(path, InputFile) else None
-    if raw is None and isinstance(path, (str, os.PathLike)) and os.path.isdir(path):
-        raise ValueError(f"--{stream} {path}: a folder; expected a {stream} pose file")
     fmt = infer_format(raw.source if raw else path) if fmt is None else check_format(fmt)
     if stream not in STREAMS:
         raise ValueError(f"stream: expected one of {STREAMS}, got {stream!r}")
