@@ -286,3 +286,18 @@ def test_session_resume_names_state(tmp_path, capsys):
     assert _error(capsys).startswith("handeye-drake: error: --state: calibration.json is not a "
                                      "session state")
     assert state.read_text() == '{"mode": "eye_in_hand"}'
+
+
+@pytest.mark.parametrize("extra, expected", [
+    # Each was silently ignored: a rig run that printed no comparison, or used the cameras'
+    # own intrinsics / mounts instead of those given.
+    (["--compare", "{r}/other.json"], "--compare: not read for a rig of cameras"),
+    (["--intrinsics", "{r}/wrist/intrinsics.yaml"], "--intrinsics: not read for a rig"),
+    (["--mode", "eye-to-hand"], "--mode: not read for a rig of cameras"),
+])
+def test_rig_refuses_single_camera_options(rig_dir, tmp_path, capsys, extra, expected):
+    rig = _rig_yaml(rig_dir, "  wrist: {images: wrist}\n")
+    argv = ["calibrate", "--rig", str(rig), *[x.format(r=rig_dir) for x in extra],
+            "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert expected in _error(capsys)
