@@ -301,3 +301,22 @@ def test_rig_refuses_single_camera_options(rig_dir, tmp_path, capsys, extra, exp
             "--out", str(tmp_path / "out")]
     assert main(argv) == 2
     assert expected in _error(capsys)
+
+
+# --- calibrate_rig() in Python --------------------------------------------------------------
+
+def test_calibrate_rig_api_misuse(rig_dir):
+    # Were AttributeError / TypeError tracebacks, and a target of None a FAIL verdict.
+    from handeye_drake.calibration import CalibrationOptions
+    from handeye_drake.calibration.rig import RigCamera, calibrate_rig
+    robot = rig_dir / "robot_poses.tum"
+    w = RigCamera("wrist", rig_dir / "wrist")
+    for cameras in (["wrist"], w):
+        with pytest.raises(ValueError, match="^cameras: expected a list of RigCamera"):
+            calibrate_rig(cameras, robot, TARGET)
+    with pytest.raises(ValueError, match="^options: expected a CalibrationOptions, got dict"):
+        calibrate_rig([w], robot, TARGET, "cell", {"mode": "eye_in_hand"})
+    with pytest.raises(ValueError, match="^target: the board spec is needed"):
+        calibrate_rig([w], robot, None, "cell", CalibrationOptions())
+    with pytest.raises(ValueError, match="^camera name: .*got 5"):
+        RigCamera(5, rig_dir / "wrist")
