@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from .argtypes import int_up_to, positive_deg_mm
+from .argtypes import int_up_to, positive_deg_mm, positive_float
 from .outputs import prepare_output_dir
 from .pose_args import _numbers, parse_intrinsics, parse_point, parse_pose  # noqa: F401
 from ..estimation.observability import (HOLDER_FRAME, UnobservableError,
@@ -345,6 +345,14 @@ def run_plan(args) -> int:
     return 0
 
 
+def _angle_up_to_180(text: str) -> float:
+    """``--max-angle``: a rotation bound (deg) in (0, 180]."""
+    v = positive_float(text)
+    if v > 180:
+        raise argparse.ArgumentTypeError(f"expected an angle in (0, 180] degrees, got {text!r}")
+    return v
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Adds the ``plan`` subcommand to an argparse ``subparsers`` object."""
     p = subparsers.add_parser(
@@ -372,9 +380,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                      help="candidate robot poses X_BE (any pose format, e.g. reachable poses)")
     src.add_argument("--around", metavar="POSE",
                      help="sample candidates around this X_BE (x,y,z,qx,qy,qz,qw)")
-    p.add_argument("--max-angle", type=float, default=30.0, metavar="DEG",
+    p.add_argument("--max-angle", type=_angle_up_to_180, default=30.0, metavar="DEG",
                    help="--around: largest rotation from POSE (default 30)")
-    p.add_argument("--max-distance", type=float, default=0.1, metavar="METRES",
+    p.add_argument("--max-distance", type=positive_float, default=0.1, metavar="METRES",
                    help="--around: largest flange displacement from POSE (default 0.1)")
     p.add_argument("--num-candidates", type=int_up_to(100_000, "each costs about 0.5 ms"),
                    default=None, metavar="N",

@@ -57,4 +57,8 @@ def parse_intrinsics(text: str) -> CameraIntrinsics:
     fx, fy, cx, cy, w, h = v
     if w != int(w) or h != int(h):
         raise ValueError(f"--intrinsics: width and height must be integers, got {w:g}, {h:g}")
-    return CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=int(w), height=int(h))
+    try:
+        return CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=int(w),
+                                height=int(h))
+    except ValueError as e:
+        raise ValueError(f"--intrinsics {text}: {e}") from None

@@ -56,6 +56,7 @@ from ..calibration.session import (CalibrationSession, CandidatePoses, is_sessio
 from ..estimation.se3 import quat_wxyz, rotation_angle
 from ..recorded.formats import read_poses
 from .outputs import prepare_output_dir
+from .argtypes import positive_float, positive_int
 from .pose_args import _numbers, parse_intrinsics, parse_pose
 
 
@@ -100,17 +101,28 @@ class LineReader:
 
     def __init__(self, path: Path):
         self.path = path
-        self.fh = path.open()
+        self.fh = path.open(encoding="utf-8")
         self.k = 0
         self.buf = ""
+
+    #: Longest sample line read (characters): a sample is a few hundred; a file without
+    #: newlines (a binary, an image) is not read whole into memory.
+    MAX_LINE = 1_000_000
 
     def read(self, final: bool = False) -> list:
         out = []
         while True:
-            chunk = self.fh.readline()
+            try:
+                chunk = self.fh.readline(self.MAX_LINE)
+            except UnicodeDecodeError:
+                raise ValueError(f"--samples {self.path}: line {self.k + 1} is not UTF-8 text "
+                                 "(not a sample file?)") from None
             if not chunk:
                 break
             self.buf += chunk
+            if len(self.buf) >= self.MAX_LINE:
+                raise ValueError(f"--samples {self.path}: line {self.k + 1} is longer than "
+                                 f"{self.MAX_LINE} characters (not a sample file?)")
             if self.buf.endswith("\n"):
                 self.k += 1
                 out.append((self.buf, f"{self.path.name} line {self.k}"))
@@ -135,6 +147,8 @@ def _line_batches(args, driver=None, pending=None):
             yield [(line, f"stdin line {k}")]
         return
     path = Path(args.samples)
+    if path.is_dir():
+        raise ValueError(f"--samples {args.samples}: a folder; expected the samples file")
     if not path.is_file():
         raise ValueError(f"--samples: file not found: {args.samples!r}")
     reader = LineReader(path)
@@ -326,7 +340,11 @@ def run_session(args) -> int:
     else:
         next_pose = _planner(args, mode)
     if args.resume:
-        session = CalibrationSession.resume(args.state, next_pose)
+        try:
+            session = CalibrationSession.resume(args.state, next_pose)
+        except ValueError as e:  # the library names its argument "state"
+            msg = str(e)
+            raise ValueError("--" + msg if msg.startswith("state: ") else msg) from None
         if session.mode != mode:
             raise ValueError(f"--mode: the saved session is {session.mode}, not {mode}")
         print(f"resumed {len(session.X_BE)} samples from {args.state}")
@@ -464,12 +482,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "the session reads like a real driver's file")
     p.add_argument("--max-samples", type=int, default=None, metavar="N",
                    help="end the session after N samples (default: no limit; --simulate 40)")
-    p.add_argument("--supersample", type=int, default=2, metavar="N",
+    p.add_argument("--supersample", type=positive_int, default=2, metavar="N",
                    help="--simulate: the renderer's anti-aliasing factor (default 2)")
     p.add_argument("--follow", action="store_true",
                    help="keep reading the file (or --bag) as it grows (until stop or "
                         "--idle-timeout)")
-    p.add_argument("--idle-timeout", "--timeout-s", dest="idle_timeout", type=float,
+    p.add_argument("--idle-timeout", "--timeout-s", dest="idle_timeout", type=positive_float,
                    default=60.0, metavar="SECONDS",
                    help="--follow: give up after this long without a new sample (default 60)")
     b = p.add_argument_group("ROS bags (--bag)")
@@ -485,7 +503,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--camera-info-topic", metavar="TOPIC",
                    help="--image-topic: the CameraInfo (default: camera_info beside the image "
                         "topic, as calibrate; 'none' to ignore it); --intrinsics overrides it")
-    b.add_argument("--poll-s", type=float, default=0.5, metavar="SECONDS",
+    b.add_argument("--poll-s", type=positive_float, default=0.5, metavar="SECONDS",
                    help="--follow: how often to re-read the bag (default 0.5)")
     p.add_argument("--target-sigma", default="0.1,1.0", metavar="DEG,MM",
                    help="stop when the hand-eye σ (RMS radius) is at most DEG and MM (default "
@@ -503,7 +521,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="reachable, collision-free poses from Drake's IK (shipped UR5e or "
                         "--urdf, floor at z = 0)")
     g.add_argument("--urdf", default=None, metavar="FILE", help="--feasible: robot model")
-    g.add_argument("--num-candidates", type=int, default=60, metavar="N",
+    g.add_argument("--num-candidates", type=positive_int, default=60, metavar="N",
                    help="--feasible: views to generate (default 60)")
     g.add_argument("--seed", type=int, default=0, help="--feasible: random seed")
     g.add_argument("--board", metavar="WIDTH,HEIGHT",

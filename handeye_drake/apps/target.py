@@ -37,9 +37,10 @@ MIN_ELEMENT_PX = 8
 
 
 def _smallest_element(target) -> tuple[str, float]:
-    """(name, size in m) of the target's smallest printed square, marker or tag."""
-    sizes = [(name, getattr(target, name)) for name in ("square", "marker", "size")
-             if hasattr(target, name)]
+    """(name, size in m) of the target's smallest printed square, marker, tag or circle."""
+    # A circle grid's diameter is set by validation (None: half the nearest centre distance).
+    sizes = [(name, getattr(target, name)) for name in ("square", "marker", "size", "diameter")
+             if getattr(target, name, None) is not None]
     return min(sizes, key=lambda v: v[1])
 
 

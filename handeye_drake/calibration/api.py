@@ -182,12 +182,18 @@ def _array_stream(value, times, name: str, what: str, translation_scale: float,
     if _is_path(value):
         raise ValueError(f"{name}: a file path ({value!r}) beside poses given as an array: give "
                          "both streams as files, or both as arrays")
+    kind = type(value).__name__
     try:
-        P = np.array(value, dtype=float)
+        P = np.array(value)
+        # float() of a complex array drops the imaginary part silently (numpy only warns).
+        if P.dtype.kind not in "biuf":
+            P, kind = None, f"{kind} of {P.dtype}"
+        else:
+            P = P.astype(float)
     except (TypeError, ValueError, OverflowError):
         P = None
     if P is None or P.ndim != 3 or P.shape[1:] != (4, 4) or len(P) == 0:
-        shape = f"shape {P.shape}" if P is not None else type(value).__name__
+        shape = f"shape {P.shape}" if P is not None else kind
         raise ValueError(f"{name}: expected a pose file path, or {what} as an (N, 4, 4) array "
                          f"or a list of 4×4 transforms, got {shape}")
     if times is not None:

@@ -81,6 +81,10 @@ def _answer(source, name: str) -> tuple[str, np.ndarray, np.ndarray, str]:
                 np.asarray(source.covariance, float), source.verdict.status)
     if isinstance(source, (str, Path)):
         path = Path(source)
+        if path.is_dir():  # an output folder: its calibration.json
+            if not (path / "calibration.json").is_file():
+                raise ValueError(f"{name}: {path} is a folder without a calibration.json")
+            path = path / "calibration.json"
         if not path.is_file():
             raise ValueError(f"{name}: no such file: {path}")
         if path.stat().st_size > MAX_JSON_BYTES:
@@ -94,6 +98,10 @@ def _answer(source, name: str) -> tuple[str, np.ndarray, np.ndarray, str]:
         name = f"{name} {path}"
     if not isinstance(source, dict):
         raise ValueError(f"{name}: expected a calibration.json object")
+    if isinstance(source.get("rig"), dict) and isinstance(source.get("cameras"), dict):
+        raise ValueError(f"{name}: a rig's calibration.json; give one camera's, "
+                         f"NAME/calibration.json beside it (cameras: "
+                         f"{', '.join(map(str, source['cameras']))})")
     mode = source.get("mode")
     if mode not in ("eye_in_hand", "eye_to_hand"):
         raise ValueError(f"{name}: not a calibration.json (no 'mode' eye_in_hand or "
@@ -101,8 +109,14 @@ def _answer(source, name: str) -> tuple[str, np.ndarray, np.ndarray, str]:
     key = hand_name(mode)
     try:
         pose = source[key]
-        X = np.asarray(pose["matrix"], dtype=float)
-        C = np.asarray(pose["std"]["covariance"], dtype=float)
+        if isinstance(pose, list) and "camera" in source:
+            # A rig camera's NAME/calibration.json: the 4×4 and the covariance (same error
+            # state [δθ; δt]) beside it.
+            X = np.asarray(pose, dtype=float)
+            C = np.asarray(source["covariance"], dtype=float)
+        else:
+            X = np.asarray(pose["matrix"], dtype=float)
+            C = np.asarray(pose["std"]["covariance"], dtype=float)
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"{name}: not a calibration.json ({key}.matrix and "
                          f"{key}.std.covariance needed)") from None

@@ -536,8 +536,9 @@ def _scale_check(stage: CornerStage, data, kwargs, seed: int = 0) -> None:
         "FAIL", "target_size",
         f"the target's declared size is wrong: the pixels say its sizes are {f_s:.4g}× those "
         f"declared (± {sd:.2g}, {abs(z):.0f}σ from 1{robot}) — {what}; "
-        f"multiply the square (and marker) sizes of --target by {f_s:.4g}, or measure the "
-        f"printed target (its outer corners {span:.4g} mm apart as declared)"))
+        f"multiply the square (and marker) sizes of --target by {f_s:.4g} (a circle grid's "
+        f"SPACING and DIAMETER), or measure the printed target (its outermost detected points "
+        f"{span:.4g} mm apart as declared)"))
 
 
 def _inflate(fit: CornerFit, factor: float) -> None:

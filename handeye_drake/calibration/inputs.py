@@ -93,6 +93,12 @@ def _raise_units(robot_err, camera_err, robot_scale: float, camera_scale: float)
     raise ValueError(str(err).replace(_MM_HINT, hint)) from None
 
 
+def _pose_file(path, stream: str) -> None:
+    """A folder given for a pose file is named as such (not as a file without an extension)."""
+    if isinstance(path, (str, os.PathLike)) and os.path.isdir(path):
+        raise ValueError(f"--{stream} {path}: a folder; expected the {stream} pose file")
+
+
 def file_streams(robot_path, camera_path, fmt: str | None = None, camera_in_target: bool = False,
                  robot_translation_scale: float = 1.0, camera_translation_scale: float = 1.0,
                  max_translation: float | None = MAX_TRANSLATION, time_scale: float = 1.0,
@@ -102,6 +108,8 @@ def file_streams(robot_path, camera_path, fmt: str | None = None, camera_in_targ
     """Reads the robot (X_BE) and camera (X_CT) pose files, each exactly once (one file holding
     both, e.g. OpenCV YAML, is read once). Formats: ``robot_format`` / ``camera_format``, else
     ``fmt`` for both, else from each file's extension."""
+    _pose_file(robot_path, "robot")
+    _pose_file(camera_path, "camera")
     robot_fmt = robot_format or fmt or infer_format(robot_path)
     camera_fmt = camera_format or fmt or infer_format(camera_path)
     same = str(robot_path) == str(camera_path)
@@ -423,9 +431,16 @@ def _self_calibrated(frames, target, width: int, height: int):
 
 def _given_intrinsics(spec, width: int, height: int):
     from ..vision.intrinsics import load_intrinsics
-    if "," in str(spec) and not Path(str(spec)).exists():
-        return load_intrinsics(spec, width=width, height=height)
-    return load_intrinsics(spec)
+    if isinstance(spec, (str, Path)) and Path(str(spec)).is_dir():
+        raise ValueError(f"--intrinsics {spec}: a folder; expected an intrinsics file (OpenCV "
+                         "or ROS camera_info YAML) or fx,fy,cx,cy[,…]")
+    try:
+        if "," in str(spec) and not Path(str(spec)).exists():
+            return load_intrinsics(spec, width=width, height=height)
+        return load_intrinsics(spec)
+    except ValueError as e:
+        raise ValueError(str(e) if str(e).startswith("--intrinsics") else
+                         f"--intrinsics: {e}") from None
 
 
 def _detect_frames(frames, target, intrinsics, drawings_dir=None):
@@ -499,6 +514,7 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
     groups = image_groups(image_specs)
     paths = [q for _, files in groups for q in files]
+    _pose_file(robot_path, "robot")
     robot_fmt = fmt or infer_format(robot_path)
     robot = read_poses(robot_path, "robot", robot_fmt, False, robot_translation_scale)
     robot = _reorder(robot, robot_quaternion_order, "--robot-quaternion-order", robot_fmt)

@@ -70,7 +70,8 @@ class RigCamera:
     topic: str | None = None
 
     def __post_init__(self):
-        if not self.name or not str(self.name).replace("_", "").replace("-", "").isalnum():
+        if not isinstance(self.name, str) or not self.name.replace("_", "").replace(
+                "-", "").isalnum():
             raise ValueError(f"camera name: expected letters, digits, _ or -, got {self.name!r}")
         if self.mount not in MOUNTS:
             raise ValueError(f"camera {self.name}: mount must be one of {MOUNTS}, got "
@@ -337,8 +338,16 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
     from .corners import calibrate_images
     from .inputs import bag_image_streams, image_streams
     options = options or CalibrationOptions()
+    if not isinstance(options, CalibrationOptions):
+        raise ValueError(f"options: expected a CalibrationOptions, got {type(options).__name__}")
     if board_mount not in MOUNTS:
         raise ValueError(f"board_mount: expected one of {MOUNTS}, got {board_mount!r}")
+    if isinstance(cameras, RigCamera) or not isinstance(cameras, (list, tuple)) or not all(
+            isinstance(c, RigCamera) for c in cameras):
+        raise ValueError(f"cameras: expected a list of RigCamera, got {cameras!r:.200}")
+    if target is None or (isinstance(target, str) and not target.strip()):
+        raise ValueError("target: the board spec is needed (e.g. "
+                         "charuco:7x5:0.04:0.03:DICT_5X5_100)")
     names = [c.name for c in cameras]
     if len(set(names)) != len(names) or not cameras:
         raise ValueError(f"cameras: expected distinct names, got {names}")

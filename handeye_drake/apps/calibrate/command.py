@@ -288,6 +288,16 @@ def run_calibrate_command(args) -> int:
         if args.camera:
             raise ValueError(f"--camera {args.camera}: a rig's cameras are NAME:DIR; a camera "
                              "pose file calibrates one camera")
+        # Single-camera options a rig does not read: refused rather than silently ignored.
+        for option, given, instead in (
+                ("--compare", args.compare is not None,
+                 "compare one camera's NAME/calibration.json with calibrate --images"),
+                ("--intrinsics", args.intrinsics is not None,
+                 "give each camera's as --camera NAME:DIR:MOUNT:INTRINSICS"),
+                ("--mode", args.mode.replace("_", "-") != "eye-in-hand",
+                 "give each camera's mount as --camera NAME:DIR:hand|cell")):
+            if given:
+                raise ValueError(f"{option}: not read for a rig of cameras; {instead}")
         from .rig_command import run_rig_command
         return run_rig_command(args, rig_cameras, options_from_args(args))
     sources = [bool(args.bag), bool(args.images), bool(args.camera)]

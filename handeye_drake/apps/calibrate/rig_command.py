@@ -30,15 +30,78 @@ from pathlib import Path
 
 from ...calibration.rig import RigCamera, calibrate_rig
 
-_NAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
+#: Largest rig YAML read (bytes): a rig of many cameras is a few kB.
+_MAX_RIG_BYTES = 1_000_000
+_RIG_KEYS = ("robot", "target", "board", "cameras")
+_CAMERA_KEYS = ("images", "mount", "intrinsics")
+
+
+def _unique_key_loader():
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        """A safe loader that refuses a key given twice (YAML keeps the last one silently: two
+        cameras of one name would be one camera)."""
+
+    def mapping(loader, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} given twice", key_node.start_mark)
+            seen.add(key)
+        return loader.construct_mapping(node, deep=deep)
+
+    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return Loader
+
+
+def check_rig_camera(cam: RigCamera, where: str) -> None:
+    """Bad input as an error naming ``where`` before any fit: a camera folder without images, an
+    intrinsics file that does not exist or does not read (they would become a FAIL verdict)."""
+    from ...calibration.inputs import image_paths
+    from ...vision.intrinsics import load_intrinsics
+    if cam.topic is None:
+        try:
+            image_paths(cam.images)
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
+    else:
+        from ...recorded.bags import (COMPRESSED_IMAGE_TYPE, IMAGE_TYPE, bag_topics,
+                                      require_topic)
+        try:
+            require_topic(str(cam.images), bag_topics(cam.images), cam.topic,
+                          (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), "image topic")
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
+    intr = cam.intrinsics
+    if isinstance(intr, (str, Path)):
+        text = str(intr).strip()
+        try:
+            if Path(text).is_file():
+                load_intrinsics(text)
+            elif "," not in text or "/" in text or Path(text).suffix.lower() in (
+                    ".yaml", ".yml", ".xml"):
+                load_intrinsics(text)  # raises: no such file, and not a spec
+        except ValueError as e:
+            if Path(text).is_file() and "no image width" in str(e):
+                return  # a file without the image size: taken from the images later
+            raise ValueError(f"{where}: {e}") from None
+
+
 
 
 def is_rig_camera(text: str) -> bool:
     """``--camera`` names a rig camera (NAME:DIR…) rather than a camera pose file: a name before
     the first colon and no file of that whole name."""
     name, sep, rest = str(text).partition(":")
-    return bool(sep and name and set(name) <= _NAME_CHARS and rest
-                and not Path(text).is_file())
+    if not (sep and name and rest) or Path(text).is_file():
+        return False
+    # The names RigCamera takes (unicode letters too, as in a rig YAML); a name it refuses
+    # before an existing folder is a rig camera with a bad name, said so by RigCamera.
+    return (name.replace("_", "").replace("-", "").isalnum()
+            or Path(rest.split(":")[0]).is_dir())
 
 
 def parse_rig_camera(text: str, bag=None) -> RigCamera:
@@ -55,23 +118,38 @@ def parse_rig_camera(text: str, bag=None) -> RigCamera:
         raise ValueError(f"--camera {text}: {folder} not found")
     try:
         if bag is not None:
-            return RigCamera(name, bag, mount, intrinsics, topic=folder)
-        return RigCamera(name, folder, mount, intrinsics)
+            cam = RigCamera(name, bag, mount, intrinsics, topic=folder)
+        else:
+            cam = RigCamera(name, folder, mount, intrinsics)
     except ValueError as e:
         raise ValueError(f"--camera {text}: {e}") from None
+    check_rig_camera(cam, f"--camera {text}")
+    return cam
 
 
 def read_rig_yaml(path) -> dict:
     """{"robot", "target", "board", "cameras": [RigCamera]} of a rig YAML (module docstring)."""
     import yaml
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"--rig {path}: a folder; expected the rig's YAML file")
+    if p.is_file() and p.stat().st_size > _MAX_RIG_BYTES:
+        raise ValueError(f"--rig {path}: larger than {_MAX_RIG_BYTES} bytes; not a rig YAML")
     try:
-        doc = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise ValueError(f"--rig {path}: {e}") from None
+        doc = yaml.load(p.read_text(encoding="utf-8"), Loader=_unique_key_loader())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        raise ValueError(f"--rig {path}: {' '.join(str(e).split())}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("cameras"), dict) or not doc["cameras"]:
         raise ValueError(f"--rig {path}: expected a mapping with 'cameras: {{NAME: {{images: "
-                         "DIR, mount: hand|cell, intrinsics: FILE}}}}'")
+                         "DIR, mount: hand|cell, intrinsics: FILE}}'")
+    # A misspelt key (bord:, intrinsic:) would silently fall back to a default.
+    unknown = sorted(str(k) for k in doc if k not in _RIG_KEYS)
+    if unknown:
+        raise ValueError(f"--rig {path}: unknown key {', '.join(map(repr, unknown))} (expected "
+                         f"{', '.join(_RIG_KEYS)})")
+    for key in ("robot", "target", "board"):
+        if doc.get(key) is not None and not isinstance(doc[key], str):
+            raise ValueError(f"--rig {path}: {key}: expected a string, got {doc[key]!r}")
     base = p.parent
 
     def rel(v):
@@ -82,6 +160,11 @@ def read_rig_yaml(path) -> dict:
     for name, c in doc["cameras"].items():
         if not isinstance(c, dict) or "images" not in c:
             raise ValueError(f"--rig {path}: camera {name}: expected {{images: DIR, …}}")
+        unknown = sorted(str(k) for k in c if k not in _CAMERA_KEYS)
+        if unknown:
+            raise ValueError(f"--rig {path}: camera {name}: unknown key "
+                             f"{', '.join(map(repr, unknown))} (expected "
+                             f"{', '.join(_CAMERA_KEYS)})")
         intr = c.get("intrinsics")
         if intr is not None and not Path(rel(intr)).exists():
             intr_arg = str(intr)              # an inline spec (fx,fy,cx,cy,…)
@@ -91,6 +174,7 @@ def read_rig_yaml(path) -> dict:
             cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg))
         except ValueError as e:
             raise ValueError(f"--rig {path}: {e}") from None
+        check_rig_camera(cams[-1], f"--rig {path}: camera {name}")
     return {"robot": rel(doc.get("robot")), "target": doc.get("target"),
             "board": doc.get("board"), "cameras": cams}
 
@@ -121,6 +205,14 @@ def run_rig_command(args, rig_cameras, options) -> int:
     names = [c.name for c in cams]
     if len(set(names)) != len(names):
         raise ValueError(f"--camera: camera names must differ, got {', '.join(names)}")
+    # Two cameras cannot take the same images: one source given twice is a typo.
+    sources = {}
+    for c in cams:
+        key = (str(Path(c.images).resolve()), c.topic)
+        if key in sources:
+            raise ValueError(f"--camera: cameras {sources[key]} and {c.name} read the same "
+                             f"{'topic ' + c.topic if c.topic else 'images ' + str(c.images)}")
+        sources[key] = c.name
     out = prepare_output_dir(args.out, "calibrate", args.force)
     result = calibrate_rig(cams, robot, target, board, options,
                            robot_frames=args.robot_frames)
