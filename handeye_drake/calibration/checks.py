@@ -238,11 +238,8 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
     alt = Alternative("camera_scale", "", "", None)
 
     def apply(r, c):
-        def cost(log_s):
-            scaled = _stream(with_scaled_translations(c.poses, math.exp(log_s)), c)
-            return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
         # bracket 0.69 · 0.618¹⁴ ≈ 1e-3 in log s
-        factor = _golden_log(cost, *SCALE_RANGE, iterations=14)
+        factor = _best_factor(reading, r, c, with_scaled_translations, SCALE_RANGE, 14)
         if abs(factor - 1.0) <= QUICK_SCALE_RESOLUTION:
             # The best scale is the one given, to what the quick fit on a subset resolves
             # (the profile of ``pipeline.camera_scale_test`` measures small scales): not a
@@ -257,6 +254,15 @@ def _camera_scale_alternative(reading: Reading) -> Alternative:
 
     alt.apply = apply
     return alt
+
+
+def _best_factor(reading: Reading, r, c, transform, bounds, iterations: int) -> float:
+    """The factor in ``bounds`` for which ``transform(camera poses, factor)`` fits the robot's
+    best (the quick fit's median translation residual; golden section on log factor)."""
+    def cost(log_s):
+        scaled = _stream(transform(c.poses, math.exp(log_s)), c)
+        return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
+    return _golden_log(cost, *bounds, iterations=iterations)
 
 
 def _golden_log(cost, lo: float, hi: float, iterations: int = 14) -> float:
@@ -296,11 +302,8 @@ def _camera_focal_alternative(reading: Reading) -> Alternative:
     alt = Alternative("camera_focal", "", "", None)
 
     def apply(r, c):
-        def cost(log_k):
-            scaled = _stream(_with_scaled_depths(c.poses, math.exp(log_k)), c)
-            return _quick_fit(r, scaled, reading.mode, reading.time_offset)[1]
         # 10 steps bracket log k to 0.45 · 0.618¹⁰ ≈ 0.004: enough for the 1 % it must resolve.
-        factor = _golden_log(cost, *FOCAL_RANGE, iterations=10)
+        factor = _best_factor(reading, r, c, _with_scaled_depths, FOCAL_RANGE, 10)
         if abs(factor - 1.0) <= QUICK_SCALE_RESOLUTION:
             raise ValueError(f"the best camera depth scale is {factor:.4g}: as given")
         alt.description = (f"the camera's depths are {1 / factor:.4g}× the true ones and their "
