@@ -189,7 +189,8 @@ def _bag_samples(args, on_poll):
     follower = BagFollower(args.bag, args.robot_frames, camera_topic=args.camera_topic,
                            camera_frames=args.camera_frames, image_topic=args.image_topic,
                            camera_invert=args.camera_invert,
-                           camera_info_topic=args.camera_info_topic)
+                           camera_info_topic=args.camera_info_topic,
+                           must_exist=not args.follow)
     idle = time.monotonic()
     reported = 0
     while True:

@@ -214,6 +214,8 @@ class BagFollower:
 
     Args:
         path: the bag (ROS 2 directory, ``.db3``, ``.mcap``; a finished ROS 1 ``.bag``).
+        must_exist: False for a live session that may start before the recorder creates the
+            bag (polls wait for it; the session's idle timeout ends the wait).
         robot_frames: "BASE:EE" or (BASE, EE): X_BE from tf.
         camera_topic / camera_frames / image_topic: the camera source, exactly one
             (``bags.read_bag``'s meanings; images are returned as arrays for the caller's
@@ -233,9 +235,11 @@ class BagFollower:
 
     def __init__(self, path, robot_frames="base_link:tool0", camera_topic=None,
                  camera_frames=None, image_topic=None, camera_invert: bool = False,
-                 camera_info_topic: str | None = None):
+                 camera_info_topic: str | None = None, must_exist: bool = True):
         self.path = Path(path)
-        if not self.path.exists():
+        # A live session may start before the recorder has created the bag (must_exist=False):
+        # polls then wait for it, as for a bag not readable yet.
+        if must_exist and not self.path.exists():
             raise ValueError(f"{self.path}: no such file or directory")
         given = [x is not None for x in (camera_topic, camera_frames, image_topic)]
         if sum(given) != 1:
@@ -294,6 +298,9 @@ class BagFollower:
 
     def poll(self) -> list[dict]:
         """The samples that became complete since the last poll (bag order)."""
+        if not self.path.exists():
+            self.waiting, self.last_error = True, f"{self.path}: not there yet"
+            return []
         try:
             with _Opened(self.path) as (reader, bag):
                 robot, rows = self._read(reader, bag) if self.image_topic is None else (

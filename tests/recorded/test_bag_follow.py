@@ -150,3 +150,21 @@ def test_bag_bad_inputs_are_one_line(tmp_path, capsys):
         code = main(["session", *argv, "--out", str(tmp_path / f"o{k}")])
         err = capsys.readouterr().err
         assert code == 2 and what in err and err.count("\n") == 1, (argv, err)
+
+
+def test_a_live_follower_waits_for_a_bag_not_created_yet(tmp_path):
+    """A session started before ``ros2 bag record`` has created the bag waits for it
+    (must_exist=False, what ``session --follow`` passes); without --follow it is an error."""
+    path = tmp_path / "calib_bag"
+    with pytest.raises(ValueError, match="no such file or directory"):
+        BagFollower(path, "base_link:tool0", camera_topic="/camera/target_pose")
+    f = BagFollower(path, "base_link:tool0", camera_topic="/camera/target_pose",
+                    must_exist=False)
+    assert f.poll() == [] and f.waiting and "not there yet" in f.last_error
+    rec = Recorder(path, "sqlite3", n=6, gap_s=0.0)
+    rec.run()                       # in this thread: the whole bag, then closed
+    assert rec.error is None and rec.written == 6
+    got = f.poll()
+    assert len(got) == 6 and not f.waiting
+    X_CT = np.array([s["X_CT"] for s in got])
+    assert np.allclose(X_CT, np.array([x for _, x in rec.data]), atol=1e-9)
