@@ -436,7 +436,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
             q = float(d @ np.linalg.solve(C, d))
             c.agreement = {"chi2": q, "threshold": thr,
                            "rotation_deg": float(np.degrees(np.linalg.norm(d[:3]))),
-                           "translation_m": float(np.linalg.norm(d[3:]))}
+                           "translation_m": float(np.linalg.norm(d[3:])),
+                           # The others' joint board pose and its covariance (the camera's
+                           # own is its ``alone.fit``'s): the χ² can be checked from outside.
+                           "others_X_board": f.X_boards[0].tolist(),
+                           "others_covariance": f.board_covariance(0).tolist()}
         bad = [c for c in moving if c.agreement and c.agreement["chi2"] > thr]
         if bad:
             worst = max(bad, key=lambda c: c.agreement["chi2"])

@@ -56,10 +56,16 @@ def _check_within_sigma(result, truth):
         assert np.max(c.sigma()[1]) < (0.004 if c.mount == "cell" else 0.001), name
 
 
-def test_three_camera_mixed_rig_within_sigma(rig):
+@pytest.fixture(scope="module")
+def three(rig):
     out, truth = rig
-    r = calibrate_rig(_cams(out, truth, ["wrist", "wrist2", "cell"]), out / "robot_poses.tum",
-                      truth["target"], options=OPTIONS)
+    return calibrate_rig(_cams(out, truth, ["wrist", "wrist2", "cell"]), out / "robot_poses.tum",
+                         truth["target"], options=OPTIONS)
+
+
+def test_three_camera_mixed_rig_within_sigma(rig, three):
+    out, truth = rig
+    r = three
     assert r.verdict.status in ("OK", "WARN"), r.lines()
     _check_within_sigma(r, truth)
     X, C = r.relative[("wrist", "wrist2")]
@@ -75,6 +81,25 @@ def test_three_camera_mixed_rig_within_sigma(rig):
     assert set(j["cameras"]) == {"wrist", "wrist2", "cell"} and j["relative"][0]["from"] == "wrist"
     texts = r.export("cell", "urdf,ros2")
     assert "cell_optical_frame" in texts["handeye.urdf"]
+
+
+def test_agreement_weighs_the_camera_and_the_others(rig, three):
+    """The agreement χ² compares two uncertain board poses: the camera's own (its single-camera
+    fit) and the others' joint fit — both covariances count. Without the camera's own (the
+    larger here: one camera against the joint fit) the χ² grows several-fold and more good
+    cameras are called disagreeing."""
+    out, truth = rig
+    for name in ("wrist", "wrist2"):
+        c = three.cameras[name]
+        a = c.agreement
+        X_o, C_o = np.asarray(a["others_X_board"]), np.asarray(a["others_covariance"])
+        C_own = c.alone.fit.fixed_covariance
+        d = tangent(c.alone.X_fixed, X_o)
+        assert a["chi2"] == pytest.approx(float(d @ np.linalg.solve(C_own + C_o, d)), rel=1e-6)
+        assert a["translation_m"] == pytest.approx(np.linalg.norm(d[3:]))
+        # Each board pose is within its own σ of the truth (the sum is not a fudge).
+        for X, C in ((c.alone.X_fixed, C_own), (X_o, C_o)):
+            assert _nees(X, C, np.asarray(truth["X_BT"])) < BOUND, name
 
 
 def test_two_camera_mixed_rig_within_sigma(rig):
