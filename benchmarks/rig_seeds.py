@@ -25,8 +25,9 @@ each ``--refine-intrinsics``:
   σ and the offset within 10 ms.
 
 Printed: the time to render each cell and to run each row, then a table (one row per seed,
-number of images and refine mode; ``ok`` or ``FAIL`` per check) and every failing check's
-details.
+number of images and refine mode; ``ok`` or ``FAIL`` per check; the largest NEES of an answer
+that must be within σ, naming it, and the largest agreement χ² of a good rig's hand camera) and
+every failing check's details.
 """
 import argparse
 import contextlib
@@ -51,6 +52,10 @@ from handeye_drake.recorded.example_rig import (TRUE_X_BC_CELL, TRUE_X_EC, TRUE_
 BOUND = float(chi2.ppf(0.999, 6))
 KNOCK = make_transform(rotation_exp(np.radians([0.0, 1.0, 0.0])), [0.008, 0.0, 0.0])
 CHECKS = ("three", "two", "blind", "swapped", "knocked", "slipped", "focal", "bag")
+#: Every NEES of an answer that must be within σ, (check, answer, NEES), of the current row.
+NEES = []
+#: Every agreement χ² of a good rig's camera, of the current row.
+AGREEMENT = []
 
 
 def render(out, seed, n):
@@ -87,6 +92,7 @@ def _within(r, truth, names, bad):
             bad.append(f"{name} has no answer")
             continue
         nees = _nees(c.X, c.covariance, np.asarray(truth["cameras"][name][c.key]))
+        NEES.append((name, nees))
         if nees >= BOUND:
             e = tangent(c.X, np.asarray(truth["cameras"][name][c.key]))
             sr, st = c.sigma()
@@ -108,6 +114,7 @@ def check_three(out, truth, opts, n):
     if ("wrist", "wrist2") in r.relative:
         X, C = r.relative[("wrist", "wrist2")]
         nees = _nees(X, C, relative_truth(truth, "wrist", "wrist2"))
+        NEES.append(("wrist→wrist2", nees))
         if nees >= BOUND:
             bad.append(f"X_wrist_wrist2 NEES {nees:.1f}")
         if r.cameras["wrist"].covariance is not None and not (
@@ -121,6 +128,7 @@ def check_three(out, truth, opts, n):
             bad.append(f"board {1000 * eb:.2f} mm off")
     for name in ("wrist", "wrist2"):
         a = r.cameras[name].agreement
+        AGREEMENT.append(a.get("chi2", math.nan))
         if not a or a["chi2"] >= a["threshold"]:
             bad.append(f"{name} agreement χ² {a.get('chi2', math.nan):.1f}")
     return bad
@@ -244,6 +252,7 @@ def check_bag(out, truth, opts, n):
                 continue
             nees = _nees(np.asarray(c[key]), np.asarray(c["covariance"]),
                          np.asarray(truth["cameras"][name][key]))
+            NEES.append((name, nees))
             if nees >= BOUND:
                 bad.append(f"{name} NEES {nees:.1f}")
         off = j["cameras"]["wrist"].get("alone", {}).get("time_offset_s")
@@ -273,6 +282,8 @@ def main():
                     opts = CalibrationOptions(refine_intrinsics=refine)
                     t0 = time.perf_counter()
                     cells = []
+                    NEES.clear()
+                    AGREEMENT.clear()
                     for name, fn in fns.items():
                         try:
                             bad = fn(out, truth, opts, n)
@@ -282,17 +293,22 @@ def main():
                         details += [f"seed {seed}, {n} images, {refine}, {name}: {b}"
                                     for b in bad]
                     t_checks = time.perf_counter() - t0
+                    worst = max(NEES, key=lambda x: x[1], default=("—", math.nan))
+                    cells.append(f"{worst[1]:.1f} {worst[0]}")
+                    cells.append(f"{max(AGREEMENT, default=math.nan):.1f}")
                     rows.append((seed, n, refine, cells, t_render, t_checks))
                     print(f"seed {seed}, {n} images, refine {refine}: render {t_render:.1f} s, "
                           f"checks {t_checks:.1f} s: "
-                          + " ".join(f"{c}={v}" for c, v in zip(a.checks, cells)), flush=True)
+                          + " ".join(f"{c}={v}" for c, v in zip(
+                              a.checks + ["max NEES", "max agreement χ²"], cells)), flush=True)
     print()
-    print("| seed | images | refine | " + " | ".join(a.checks) + " |")
-    print("|---|---|---|" + "---|" * len(a.checks))
+    print("| seed | images | refine | " + " | ".join(a.checks)
+          + f" | max NEES (< {BOUND:.1f}) | max agreement χ² (< {chi2.isf(1e-4, 6):.1f}) |")
+    print("|---|---|---|" + "---|" * (len(a.checks) + 2))
     for seed, n, refine, cells, _, _ in rows:
         print(f"| {seed} | {n} | {refine} | " + " | ".join(cells) + " |")
-    failing = sum(c != "ok" for r in rows for c in r[3])
-    print(f"\n{failing} failing checks of {sum(len(r[3]) for r in rows)}; render "
+    failing = sum(c == "FAIL" for r in rows for c in r[3])
+    print(f"\n{failing} failing checks of {len(rows) * len(a.checks)}; render "
           f"{np.mean([r[4] for r in rows]):.1f} s per cell on average")
     for d in details:
         print("  " + d)
