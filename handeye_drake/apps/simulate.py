@@ -161,7 +161,8 @@ def run_simulate(args) -> int:
               f"{1000 * c['final_translation_error_m']:.2f} mm from the truth (1σ "
               f"{max(c['final_X_BC_rotation_std_deg']):.3f} deg / "
               f"{1000 * max(c['final_X_BC_translation_std']):.2f} mm per axis at most; "
-              f"{c['frames_used']} frames with both cameras)")
+              f"{c['frames_used']} frames with both cameras"
+              + (f"; NEES {c['final_nees']:.1f})" if c["final_nees"] is not None else ")"))
     print(f"  simulated {summary['simulated_time_s']:.2f} s in {summary['wall_time_s']:.2f} s wall "
           f"(real-time factor {summary['real_time_factor']:.2f})"
           + (" — INTERRUPTED, results so far saved" if result.interrupted else ""))
