@@ -790,6 +790,9 @@ class ScenarioResult:
                 "final_X_BC_translation_std": [float(v) for v in c["X_BC_std"][-1, 3:]],
                 "final_X_BC_covariance": np.asarray(c["X_BC_covariance"], float).tolist(),
                 "final_nees": c["nees"],
+                # As the hand camera's detector_frames (log 0, the initialization, left out).
+                "detector_frames": int(c["found"][1:].size),
+                "detector_found_frames": int(np.sum(c["found"][1:] > 0.5)),
                 "frames_used": int(c["frames"][-1])} for n, c in self.cell_cameras.items()}}
                if self.cell_cameras else {}),
         }

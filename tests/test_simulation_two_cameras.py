@@ -64,6 +64,8 @@ def test_both_cameras_find_the_board_in_most_frames(run):
     # Measured: both in all 90 frames.
     assert summary["detector_found_frames"] >= 0.9 * summary["detector_frames"]
     cell = summary["cell_cameras"]["cell_camera"]
+    assert cell["detector_frames"] == summary["detector_frames"]
+    assert cell["detector_found_frames"] >= 0.9 * cell["detector_frames"]
     # frames_used: the frames the cell calibrator kept, those where both cameras found the
     # board (all of them: fewer than its capacity of 300).
     assert cell["frames_used"] >= 0.9 * summary["detector_frames"]
@@ -92,4 +94,5 @@ def test_the_cell_cameras_X_BC_is_within_its_sigma_and_the_sigma_means_something
     assert max(c["final_X_BC_translation_std"]) < 0.006
     assert c["final_translation_error_m"] < 0.006 and c["final_rotation_error_deg"] < 0.5
     line = next(ln for ln in printed.splitlines() if "cell camera cell_camera:" in ln)
-    assert f"NEES {c['final_nees']:.1f})" in line and f"{c['frames_used']} frames" in line
+    assert f"board found in {c['detector_found_frames']} of 90 frames" in line
+    assert f"NEES {c['final_nees']:.1f}; from the last {c['frames_used']} frames" in line
