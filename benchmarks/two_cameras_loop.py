@@ -7,7 +7,9 @@ only drives the point-feature camera's noise), so runs differing only in ``seed`
 the scenario is varied instead. Variant 0 is the scenario as written; the others move the cell
 camera (distance to the board's centre, azimuth, elevation; always looking at the centre), and
 change the desired roll about the optical axis, the true X_EC and the board's yaw about its
-centre (as ``benchmarks/rendered_loop.py --consistency`` does for one camera).
+centre (as ``benchmarks/rendered_loop.py --consistency`` does for one camera). The cell camera
+stays within what the in-loop detector reads: at 1.0 m and 35° above the table the board's
+markers are ~13 px and it finds 3 of them, too few (the cell camera then has no X_BC).
 
 Printed per variant, through ``simulation.run_scenario`` (what ``handeye-drake simulate`` runs):
 the final X_EC's and X_BC's errors to the truth (rotation deg, translation mm), their largest
@@ -38,7 +40,7 @@ DEFAULT_SCENARIO = ROOT / "scenarios" / "two_cameras.yaml"
 #: offset deg, elevation deg); variant 0 = the scenario as written.
 VARIANTS = [None,
             (-20, [4, -3, 92], 20, 0.75, 25, 50),
-            (35, [-3, 5, 88], 20, 1.00, -20, 35),
+            (35, [-3, 5, 88], 20, 0.90, -20, 45),
             (15, [2, 2, 95], 10, 0.85, 40, 45),
             (30, [-5, -4, 90], 30, 0.95, -35, 55)]
 
@@ -117,11 +119,14 @@ def main():
         text = []
         for e, C, found in cells:
             sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+            try:
+                nees = f"{float(e @ np.linalg.solve(C, e)):.2f}"
+            except np.linalg.LinAlgError:
+                nees = "— (no covariance)"
             text.append(f"{math.degrees(np.linalg.norm(e[:3])):.4f} / "
                         f"{1000 * np.linalg.norm(e[3:]):.3f} | "
                         f"{math.degrees(sd[:3].max()):.4f} / {1000 * sd[3:].max():.3f} | "
-                        f"{float(e @ np.linalg.solve(C, e)):.2f} | "
-                        f"{int((found > 0.5).sum())}/{found.size}")
+                        f"{nees} | {int((found > 0.5).sum())}/{found.size}")
         print(f"| {k}: {name} | " + " | ".join(text) + f" | {wall:.0f} |"
               + (f" WARNING: {r.diagnostics}" if r.diagnostics else ""), flush=True)
 

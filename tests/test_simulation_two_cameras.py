@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pydrake.common.schema import Rotation
 from scipy.stats import chi2
 
 from handeye_drake.apps.cli import main
@@ -96,3 +97,21 @@ def test_the_cell_cameras_X_BC_is_within_its_sigma_and_the_sigma_means_something
     line = next(ln for ln in printed.splitlines() if "cell camera cell_camera:" in ln)
     assert f"board found in {c['detector_found_frames']} of 90 frames" in line
     assert f"NEES {c['final_nees']:.1f}; from the last {c['frames_used']} frames" in line
+
+
+def test_a_cell_camera_that_never_sees_the_board_has_no_answer(tmp_path, capsys):
+    """The cell camera turned to look up: no frame with both cameras, so no X_BC is claimed (its
+    σ stays "unknown", no NEES) — and the hand camera's loop runs on."""
+    scenario = load_scenario(SCENARIO)
+    scenario.cell_cameras[0].X_WC.rotation = Rotation.Rpy(deg=[0.0, 0.0, 0.0])  # z_C up
+    path = tmp_path / "looking_up.yaml"
+    path.write_text(dump_scenario(scenario))
+    assert main(["simulate", "--scenario", str(path), "--duration", "0.3", "--out",
+                 str(tmp_path / "out"), "--no-meshcat", "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert ("cell camera cell_camera: board found in 0 of 9 frames; no X_BC (no frame where both "
+            "cameras found the board)") in printed
+    assert "detector: board found in 9 of 9 frames" in printed
+    c = json.loads((tmp_path / "out" / "summary.json").read_text())["cell_cameras"]["cell_camera"]
+    assert c["frames_used"] == 0 and c["final_nees"] is None
+    assert min(c["final_X_BC_rotation_std_deg"]) == 180.0

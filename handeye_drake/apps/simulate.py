@@ -158,6 +158,11 @@ def run_simulate(args) -> int:
                   f"(the run ended at {result.sim_time:g} s)")
     for name, c in summary.get("cell_cameras", {}).items():
         nees = c["final_nees"]
+        if c["frames_used"] == 0:
+            print(f"  cell camera {name}: board found in {c['detector_found_frames']} of "
+                  f"{c['detector_frames']} frames; no X_BC (no frame where both cameras found "
+                  "the board)")
+            continue
         print(f"  cell camera {name}: board found in {c['detector_found_frames']} of "
               f"{c['detector_frames']} frames; X_BC {c['final_rotation_error_deg']:.3f} deg / "
               f"{1000 * c['final_translation_error_m']:.2f} mm from the truth (1σ "
