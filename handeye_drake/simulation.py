@@ -45,7 +45,7 @@ from pydrake.systems.primitives import (
 )
 
 from .estimation.errors import rotation_error_deg, translation_error_rel
-from .estimation.se3 import inverse, make_transform, pose_to_vector, vector_to_pose
+from .estimation.se3 import inverse, make_transform, pose_to_vector, rotation_log, vector_to_pose
 from .scenario import (
     RENDERED_PIXEL_SIGMA,
     RenderedImages,
@@ -648,6 +648,7 @@ def build_diagram(scenario: Scenario, feedback: bool = True, X_CE_fixed=None,
             for name in ("X_BC_estimate", "X_BC_std", "frames"):
                 ports[f"{cell.name}:{name}"] = cell.calibrator.get_output_port_by_name(name)
             ports[f"{cell.name}:found"] = cell.detector.get_found_output_port()
+            ports[f"{cell.name}:X_CT_measured"] = cell.detector.get_X_CT_measured_output_port()
         loggers = add_logger(builder, ports, scenario.period)
 
     if meshcat is not None:
@@ -739,7 +740,10 @@ class ScenarioResult:
     X_EC_covariance: np.ndarray | None = None
     #: Per camera in the cell (``scenario.cell_cameras``): {"X_BC_true", "X_BC_estimates"
     #: (K, 4, 4), "X_BC_std" (K, 6: deg, m), "X_BC_covariance" (6, 6, at the end), "frames",
-    #: "found" (K,), "rotation_error_deg" (K,), "translation_error_m" (K,)}.
+    #: "found" (K,), "X_CT_samples" (K, 4, 4: its detector's X_CT of the last found frame, at
+    #: the hand camera's samples), "rotation_error_deg" (K,), "translation_error_m" (K,),
+    #: "nees" (the final X_BC's error whitened by "X_BC_covariance": χ²(6) when its σ is
+    #: honest; None before a frame with both cameras)}.
     cell_cameras: dict = field(default_factory=dict)
 
     @property
@@ -786,6 +790,11 @@ class ScenarioResult:
                 "final_translation_error_m": float(c["translation_error_m"][-1]),
                 "final_X_BC_rotation_std_deg": [float(v) for v in c["X_BC_std"][-1, :3]],
                 "final_X_BC_translation_std": [float(v) for v in c["X_BC_std"][-1, 3:]],
+                "final_X_BC_covariance": np.asarray(c["X_BC_covariance"], float).tolist(),
+                "final_nees": c["nees"],
+                # As the hand camera's detector_frames (log 0, the initialization, left out).
+                "detector_frames": int(c["found"][1:].size),
+                "detector_found_frames": int(np.sum(c["found"][1:] > 0.5)),
                 "frames_used": int(c["frames"][-1])} for n, c in self.cell_cameras.items()}}
                if self.cell_cameras else {}),
         }
@@ -902,9 +911,24 @@ def _cell_results(loop: ClosedLoop, data: dict, context) -> dict:
             "X_BC_true": cell.X_BC_true, "X_BC_estimates": X,
             "X_BC_std": data[f"{cell.name}:X_BC_std"], "X_BC_covariance": cov,
             "frames": data[f"{cell.name}:frames"][:, 0], "found": data[f"{cell.name}:found"][:, 0],
+            "X_CT_samples": np.array([vector_to_pose(v)
+                                      for v in data[f"{cell.name}:X_CT_measured"]]),
             "rotation_error_deg": np.array([rotation_error_deg(cell.X_BC_true, x) for x in X]),
-            "translation_error_m": np.linalg.norm(X[:, :3, 3] - cell.X_BC_true[:3, 3], axis=1)}
+            "translation_error_m": np.linalg.norm(X[:, :3, 3] - cell.X_BC_true[:3, 3], axis=1),
+            "nees": _nees(cell.X_BC_true, X[-1], cov)}
     return out
+
+
+def _nees(X_true, X_est, covariance) -> float | None:
+    """The error [δθ; δt] of X_est (R_true = exp([δθ]×) R_est, t_true = t_est + δt: the
+    calibrators' covariance convention) whitened by ``covariance``: χ²(6) when the covariance
+    is honest; None when it is singular (no frame with both cameras yet)."""
+    R = X_true[:3, :3] @ X_est[:3, :3].T
+    e = np.concatenate([rotation_log(R), X_true[:3, 3] - X_est[:3, 3]])
+    try:
+        return float(e @ np.linalg.solve(covariance, e))
+    except np.linalg.LinAlgError:
+        return None
 
 
 @dataclass

@@ -157,11 +157,19 @@ def run_simulate(args) -> int:
             print(f"  frames_to_save: no frame at {', '.join(f'{t:g}' for t in missed)} s "
                   f"(the run ended at {result.sim_time:g} s)")
     for name, c in summary.get("cell_cameras", {}).items():
-        print(f"  cell camera {name}: X_BC {c['final_rotation_error_deg']:.3f} deg / "
+        nees = c["final_nees"]
+        if c["frames_used"] == 0:
+            print(f"  cell camera {name}: board found in {c['detector_found_frames']} of "
+                  f"{c['detector_frames']} frames; no X_BC (no frame where both cameras found "
+                  "the board)")
+            continue
+        print(f"  cell camera {name}: board found in {c['detector_found_frames']} of "
+              f"{c['detector_frames']} frames; X_BC {c['final_rotation_error_deg']:.3f} deg / "
               f"{1000 * c['final_translation_error_m']:.2f} mm from the truth (1σ "
               f"{max(c['final_X_BC_rotation_std_deg']):.3f} deg / "
-              f"{1000 * max(c['final_X_BC_translation_std']):.2f} mm per axis at most; "
-              f"{c['frames_used']} frames with both cameras)")
+              f"{1000 * max(c['final_X_BC_translation_std']):.2f} mm per axis at most"
+              + (f", NEES {nees:.1f}" if nees is not None else "")
+              + f"; from the last {c['frames_used']} frames with both cameras)")
     print(f"  simulated {summary['simulated_time_s']:.2f} s in {summary['wall_time_s']:.2f} s wall "
           f"(real-time factor {summary['real_time_factor']:.2f})"
           + (" — INTERRUPTED, results so far saved" if result.interrupted else ""))

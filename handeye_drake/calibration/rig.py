@@ -489,11 +489,13 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
             # What the corners' noise model misses shows in how the answers move when each
             # instant is left out: their σ are widened by it (never narrowed).
             jack = jackknife_factors(fit.rig_blocks, fit, pairs)
-            if jack:
-                rig.notes.append("σ widened by a delete-one-instant jackknife: " + ", ".join(
-                    f"{cams[k[1]].name if k[0] == 'camera' else cams[k[1]].name + '→' + cams[k[2]].name}"
-                    f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0) or
-                    "σ checked by a delete-one-instant jackknife: not widened")
+            widened = ", ".join(
+                f"{cams[k[1]].name if k[0] == 'camera' else cams[k[1]].name + '→' + cams[k[2]].name}"
+                f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0)
+            if widened:
+                rig.notes.append(f"σ widened by a delete-one-instant jackknife: {widened}")
+            elif jack:
+                rig.notes.append("σ checked by a delete-one-instant jackknife: not widened")
             for i, c in enumerate(cams):
                 c.X = fit.X_cameras[i]
                 c.variance_factor = jack.get(("camera", i), 1.0)

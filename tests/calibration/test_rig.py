@@ -4,6 +4,7 @@ each answer within its σ of the truth, and bad rigs (a camera that never sees t
 folders, a camera knocked half-way) FAIL naming the camera."""
 
 import dataclasses
+import math
 
 import cv2
 import numpy as np
@@ -56,6 +57,24 @@ def _check_within_sigma(result, truth):
         assert np.max(c.sigma()[1]) < (0.004 if c.mount == "cell" else 0.001), name
 
 
+def _check_jackknife_note(result):
+    """The report says what the jackknife did, in one note with content: the cameras whose σ it
+    widened and by how much, or that it widened none (it once printed "σ widened by a
+    delete-one-instant jackknife: " with nothing after it)."""
+    lines = result.lines()
+    assert all(line.split(":", 1)[1].strip() for line in lines if line.startswith("note:"))
+    (note,) = [line for line in lines if "jackknife" in line]
+    assert not note.rstrip().endswith(":"), note
+    widened = {n: c.variance_factor for n, c in result.cameras.items() if c.variance_factor > 1}
+    if widened or "→" in note:
+        assert note.startswith("note: σ widened by a delete-one-instant jackknife: "), note
+        for name, v in widened.items():
+            assert f"{name} ×{math.sqrt(v):.2f}" in note, note
+    else:
+        assert note == "note: σ checked by a delete-one-instant jackknife: not widened", note
+    return note
+
+
 @pytest.fixture(scope="module")
 def three(rig):
     out, truth = rig
@@ -68,6 +87,7 @@ def test_three_camera_mixed_rig_within_sigma(rig, three):
     r = three
     assert r.verdict.status in ("OK", "WARN"), r.lines()
     _check_within_sigma(r, truth)
+    _check_jackknife_note(r)
     X, C = r.relative[("wrist", "wrist2")]
     assert _nees(X, C, relative_truth(truth, "wrist", "wrist2")) < BOUND
     # The camera-to-camera σ has no robot term: it is tighter than either camera's.
@@ -108,6 +128,7 @@ def test_two_camera_mixed_rig_within_sigma(rig):
                       truth["target"], options=OPTIONS)
     assert r.verdict.status in ("OK", "WARN"), r.lines()
     _check_within_sigma(r, truth)
+    _check_jackknife_note(r)
     assert not r.relative          # one on the hand, one in the cell: no fixed transform
 
 
@@ -202,6 +223,8 @@ def test_command_line_rig_cameras_and_yaml_agree(rig, tmp_path, capsys):
     assert _cli(*args, "--out", tmp_path / "a") == 0
     printed = capsys.readouterr().out
     assert "camera wrist (hand, X_EC)" in printed and "camera cell (cell, X_BC)" in printed
+    (note,) = [line for line in printed.splitlines() if "jackknife" in line]
+    assert not note.rstrip().endswith(":"), note
     a = tmp_path / "a"
     for n in ("wrist", "cell"):
         assert (a / n / "calibration.json").is_file() and (a / n / "handeye.urdf").is_file()
