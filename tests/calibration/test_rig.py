@@ -177,6 +177,9 @@ def test_command_line_rig_cameras_and_yaml_agree(rig, tmp_path, capsys):
     assert _cli(*args, "--out", tmp_path / "a") == 0
     printed = capsys.readouterr().out
     assert "camera wrist (hand, X_EC)" in printed and "camera cell (cell, X_BC)" in printed
+    # The jackknife's note says what it did (was "σ widened by …: " with nothing after it).
+    notes = [line for line in printed.splitlines() if "jackknife" in line]
+    assert notes and all("×" in n or n.endswith("not widened") for n in notes), notes
     a = tmp_path / "a"
     for n in ("wrist", "cell"):
         assert (a / n / "calibration.json").is_file() and (a / n / "handeye.urdf").is_file()
