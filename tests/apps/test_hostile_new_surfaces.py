@@ -105,6 +105,12 @@ def test_rig_yaml_bad_input(rig_dir, tmp_path, capsys, cameras, extra, expected)
     assert not (tmp_path / "out").exists()
 
 
+def test_rig_yaml_empty_name(tmp_path, capsys):
+    # Was "inputs: give one of …": an empty --rig read as no --rig.
+    assert main(["calibrate", "--rig", "", "--out", str(tmp_path / "out")]) == 2
+    assert _error(capsys) == "handeye-drake: error: --rig: empty; expected the rig's YAML file"
+
+
 def test_rig_yaml_folder(rig_dir, capsys):
     assert main(["calibrate", "--rig", str(rig_dir), "--out", str(rig_dir / "o")]) == 2
     assert "a folder; expected the rig's YAML file" in _error(capsys)
@@ -189,6 +195,9 @@ def _rig_argv(rig, tmp_path, *cameras, extra=()):
      r"^--camera: every camera is on the board's mount \(hand\)"),
     (["w:{r}/wrist:cell:{r}/i64.yaml"], (), r"^--camera: every camera is on the board's mount"),
     (["w" * 70 + ":{r}/wrist"], (), r"camera name: at most 64 characters"),   # OSError before
+    # Read as camera pose files "w:" and ":…/wrist": errors naming no argument.
+    (["w:"], (), r"^--camera w:: expected NAME:DIR"),
+    ([":{r}/wrist"], (), r"^--camera :\S+: camera name: .*got ''"),
     (["w:{r}/wrist"], ("--target", "charuco:7x5"), r"^--target charuco:7x5: target spec"),
     # Silently ignored before: the rig reads its files as they are.
     (["w:{r}/wrist"], ("--robot-translation-scale", "0.001"),

@@ -284,7 +284,7 @@ def options_from_args(args) -> CalibrationOptions:
 def run_calibrate_command(args) -> int:
     """Runs ``calibrate`` from parsed arguments; raises ValueError on bad input."""
     rig_cameras = getattr(args, "rig_cameras", None) or []
-    if rig_cameras or getattr(args, "rig", None):
+    if rig_cameras or getattr(args, "rig", None) is not None:
         if args.camera:
             raise ValueError(f"--camera {args.camera}: a rig's cameras are NAME:DIR; a camera "
                              "pose file calibrates one camera")

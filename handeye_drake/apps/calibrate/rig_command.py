@@ -138,12 +138,14 @@ def is_rig_camera(text: str) -> bool:
     """``--camera`` names a rig camera (NAME:DIR…) rather than a camera pose file: a name before
     the first colon and no file of that whole name."""
     name, sep, rest = str(text).partition(":")
-    if not (sep and name and rest) or _is(text, "is_file"):
+    if not sep or _is(text, "is_file"):
         return False
     # The names RigCamera takes (unicode letters too, as in a rig YAML); a name it refuses
-    # before an existing folder is a rig camera with a bad name, said so by RigCamera.
+    # before an existing folder is a rig camera with a bad name, said so by RigCamera (and a
+    # name without its folder, "wrist:", by parse_rig_camera).
+    folder = rest.split(":")[0]
     return (name.replace("_", "").replace("-", "").isalnum()
-            or _is(rest.split(":")[0], "is_dir"))
+            or (folder != "" and _is(folder, "is_dir")))
 
 
 def parse_rig_camera(text: str, bag=None) -> RigCamera:
@@ -275,6 +277,8 @@ def run_rig_command(args, rig_cameras, options) -> int:
     from ..outputs import prepare_output_dir
     robot, target, board = args.robot, args.target, getattr(args, "board_mount", None)
     rig = getattr(args, "rig", None)
+    if rig is not None and not str(rig).strip():
+        raise ValueError("--rig: empty; expected the rig's YAML file")
     if rig and rig_cameras:
         raise ValueError(f"--camera {rig_cameras[0]}: the rig's cameras are in --rig {rig}; "
                          "give them in one place")
@@ -308,25 +312,26 @@ def run_rig_command(args, rig_cameras, options) -> int:
         raise ValueError("--target: the calibration target is needed with a rig (e.g. "
                          "charuco:7x5:0.04:0.03:DICT_5X5_100)")
     if board not in ("cell", "hand"):
-        raise ValueError(f"--board-mount: expected cell or hand, got {board!r}")
+        raise ValueError(f"{'--board-mount' if args.board_mount else f'--rig {rig}: board'}: "
+                         f"expected cell or hand, got {board!r}")
     if args.images:
         raise ValueError("--images: a rig takes its images from each camera's folder "
                          "(--camera NAME:DIR or --rig); leave out --images")
     names = [c.name for c in cams]
+    who = f"--rig {rig}" if rig else "--camera"
     if len(set(names)) != len(names):
-        raise ValueError(f"{'--rig ' + rig if rig else '--camera'}: camera names must differ, "
-                         f"got {', '.join(names)}")
+        raise ValueError(f"{who}: camera names must differ, got {', '.join(names)}")
     # Two cameras cannot take the same images: one source given twice is a typo.
     sources = {}
     for c in cams:
         key = (str(Path(c.images).resolve()), c.topic)
         if key in sources:
-            raise ValueError(f"--camera: cameras {sources[key]} and {c.name} read the same "
+            raise ValueError(f"{who}: cameras {sources[key]} and {c.name} read the same "
                              f"{'topic ' + c.topic if c.topic else 'images ' + str(c.images)}")
         sources[key] = c.name
     if all(c.mount == board for c in cams):
-        raise ValueError(f"{'--rig ' + rig if rig else '--camera'}: every camera is on the board's mount ({board}): each sees "
-                         "one fixed view, nothing places the board; a rig needs a camera on the "
+        raise ValueError(f"{who}: every camera is on the board's mount ({board}): each sees one "
+                         "fixed view, nothing places the board; a rig needs a camera on the "
                          f"other mount (or --board-mount {'hand' if board == 'cell' else 'cell'}"
                          " if the board is there)")
     if args.parent_frame is not None:
