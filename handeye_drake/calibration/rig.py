@@ -73,6 +73,10 @@ class RigCamera:
         if not isinstance(self.name, str) or not self.name.replace("_", "").replace(
                 "-", "").isalnum():
             raise ValueError(f"camera name: expected letters, digits, _ or -, got {self.name!r}")
+        if len(self.name) > 64:
+            # It names a folder and a frame in the outputs: a file system takes ≤ 255 bytes.
+            raise ValueError(f"camera name: at most 64 characters, got {len(self.name)} "
+                             f"({self.name[:20]}…)")
         if self.mount not in MOUNTS:
             raise ValueError(f"camera {self.name}: mount must be one of {MOUNTS}, got "
                              f"{self.mount!r}")
@@ -353,6 +357,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         raise ValueError(f"cameras: expected distinct names, got {names}")
     if robot is None and any(c.topic is None for c in cameras):
         raise ValueError("robot: the robot poses (X_BE) are needed with image folders")
+    if all(c.mount == board_mount for c in cameras):
+        # Nothing places the board then: no answer can come out, whatever the images show.
+        raise ValueError(f"cameras: every camera is on the board's mount ({board_mount}); at "
+                         "least one must move relative to the board (a camera on the other "
+                         "mount, or the board on the other mount)")
     results, moving, fixed = {}, [], []
     for cam in cameras:
         res = CameraResult(cam.name, cam.mount, Verdict("OK"))
@@ -365,8 +374,14 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                 s = image_streams([str(cam.images)] if isinstance(cam.images, (str, Path))
                                   else cam.images, robot, target, cam.intrinsics)
         except ValueError as e:
-            res.verdict = _fail("no_board", f"camera {cam.name}: {e}" if "found in only" not in
-                                str(e) else f"camera {cam.name} does not see the board: {e}")
+            # Only a camera whose images do not show the board is a verdict; anything else is
+            # bad input (unreadable images, counts that do not pair, wrong-size intrinsics,
+            # the robot's file or frames): an error naming the camera, not a FAIL blaming it.
+            blind = ("found in only" in str(e) or "images show the target" in str(e)) and \
+                "another image resolution" not in str(e)
+            if not blind:
+                raise ValueError(f"camera {cam.name}: {e}") from None
+            res.verdict = _fail("no_board", f"camera {cam.name} does not see the board: {e}")
             continue
         res.streams = s
         res.images, res.detected = len(s.images), len(s.detections)

@@ -4,6 +4,7 @@ one error line naming the argument (exit 2) or a sensible result, and no user fi
 Every case here was a traceback, a message naming nothing, or a silent wrong answer before."""
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -104,6 +105,12 @@ def test_rig_yaml_bad_input(rig_dir, tmp_path, capsys, cameras, extra, expected)
     assert not (tmp_path / "out").exists()
 
 
+def test_rig_yaml_empty_name(tmp_path, capsys):
+    # Was "inputs: give one of …": an empty --rig read as no --rig.
+    assert main(["calibrate", "--rig", "", "--out", str(tmp_path / "out")]) == 2
+    assert _error(capsys) == "handeye-drake: error: --rig: empty; expected the rig's YAML file"
+
+
 def test_rig_yaml_folder(rig_dir, capsys):
     assert main(["calibrate", "--rig", str(rig_dir), "--out", str(rig_dir / "o")]) == 2
     assert "a folder; expected the rig's YAML file" in _error(capsys)
@@ -147,6 +154,147 @@ def test_rig_bag_bad_topics(example_bag, tmp_path, capsys, cameras, expected):
         argv += ["--camera", c]
     assert main(argv) == 2
     assert re.search(expected, _error(capsys))
+
+
+@pytest.fixture
+def rig_pngs(tmp_path):
+    """Three cameras of three small readable PNGs each (no board in them) and a robot file of
+    three poses: what the rig's checks of counts, sizes and the robot file look at."""
+    import cv2
+    import numpy as np
+    rig = tmp_path / "rig"
+    for cam in ("wrist", "wrist2", "cell"):
+        (rig / cam).mkdir(parents=True)
+        for k in range(3):
+            cv2.imwrite(str(rig / cam / f"img_{k}.png"), np.full((48, 64), 128, np.uint8))
+    lines = (DATA / "robot_poses.tum").read_text().splitlines()
+    (rig / "robot.tum").write_text("\n".join(lines[:5]) + "\n")   # 2 comments, 3 poses
+    from handeye_drake.vision.camera_model import CameraIntrinsics
+    from handeye_drake.vision.intrinsics import write_intrinsics_yaml
+    for name, f in (("i64", 1), ("i640", 10)):
+        write_intrinsics_yaml(CameraIntrinsics(alpha_u=60.0 * f, alpha_v=60.0 * f,
+                                               u0=32.0 * f - 0.5, v0=24.0 * f - 0.5,
+                                               width=64 * f, height=48 * f),
+                              rig / f"{name}.yaml")
+    return rig
+
+
+def _rig_argv(rig, tmp_path, *cameras, extra=()):
+    argv = ["calibrate", "--robot", str(rig / "robot.tum"), "--target", TARGET, *extra,
+            "--out", str(tmp_path / "out")]
+    return argv + [f"--camera={c.format(r=rig)}" for c in cameras]
+
+
+@pytest.mark.parametrize("cameras, extra, expected", [
+    # Were a FAIL verdict (exit 1) blaming the camera for not seeing the board, or a traceback.
+    (["w:{r}/wrist:hand:{r}/i640.yaml"], (),
+     r"^--camera w:\S+: the intrinsics are for 640×480 images, the camera's are 64×48"),
+    (["w:{r}/wrist:hand:1,2,3"], (), r"^--camera w:\S+: intrinsics '1,2,3': expected 4, 8"),
+    (["w:{r}/robot.tum"], (), r"^--camera w:\S+: \S+robot.tum is not a folder"),
+    (["w:{r}/wrist", "w2:{r}/wrist2"], ("--board-mount", "hand"),
+     r"^--camera: every camera is on the board's mount \(hand\)"),
+    (["w:{r}/wrist:cell:{r}/i64.yaml"], (), r"^--camera: every camera is on the board's mount"),
+    (["w" * 70 + ":{r}/wrist"], (), r"camera name: at most 64 characters"),   # OSError before
+    # Read as camera pose files "w:" and ":…/wrist": errors naming no argument.
+    (["w:"], (), r"^--camera w:: expected NAME:DIR"),
+    ([":{r}/wrist"], (), r"^--camera :\S+: camera name: .*got ''"),
+    (["w:{r}/wrist"], ("--target", "charuco:7x5"), r"^--target charuco:7x5: target spec"),
+    # Silently ignored before: the rig reads its files as they are.
+    (["w:{r}/wrist"], ("--robot-translation-scale", "0.001"),
+     r"^--robot-translation-scale: not read for a rig"),
+    (["w:{r}/wrist"], ("--max-images", "5"), r"^--max-images: not read for a rig"),
+    (["w:{r}/wrist"], ("--image-topic", "/x"), r"^--image-topic: not read for a rig"),
+    # One parent link for a hand and a cell camera: one of the two exports was wrong.
+    (["w:{r}/wrist", "c:{r}/cell:cell:{r}/i64.yaml"],
+     ("--export", "urdf", "--parent-frame", "flange"),
+     r"^--parent-frame flange: one parent for cameras on the hand and in the cell"),
+    # Refused by the exports only after the fit, calibration.json already written.
+    (["-w:{r}/wrist"], ("--export", "urdf"),
+     r"^--camera -w:\S+: camera name: expected a frame/link name.*'-w_optical_frame'"),
+])
+def test_rig_cameras_refused_before_reading(rig_pngs, tmp_path, capsys, cameras, extra,
+                                            expected):
+    import re
+    assert main(_rig_argv(rig_pngs, tmp_path, *cameras, extra=extra)) == 2
+    line = _error(capsys)
+    assert re.search(expected, line.removeprefix("handeye-drake: error: ")), line
+    assert not (tmp_path / "out").exists()
+
+
+def test_rig_images_that_do_not_pair_or_read(rig_pngs, tmp_path, capsys):
+    import cv2
+    import numpy as np
+    r = rig_pngs
+    # One image more than robot poses: was a FAIL verdict (exit 1) after reading every camera.
+    cv2.imwrite(str(r / "wrist2" / "img_3.png"), np.zeros((48, 64), np.uint8))
+    assert main(_rig_argv(r, tmp_path, "w:{r}/wrist", "w2:{r}/wrist2")) == 2
+    assert re.search(r"^--camera w2:\S+: 4 images but 3 robot poses",
+                     _error(capsys).removeprefix("handeye-drake: error: "))
+    # An image of another size in one camera's folder: was skipped without a word.
+    (r / "wrist2" / "img_3.png").unlink()
+    cv2.imwrite(str(r / "wrist2" / "img_1.png"), np.zeros((24, 32), np.uint8))
+    assert main(_rig_argv(r, tmp_path, "w:{r}/wrist", "w2:{r}/wrist2")) == 2
+    assert "--camera w2:" in (line := _error(capsys)) and \
+        "images of different sizes (img_0.png 64×48, img_1.png 32×24)" in line
+    # Files that are not images: was a FAIL verdict naming no argument.
+    for k in range(3):
+        (r / "wrist2" / f"img_{k}.png").write_text("not a png")
+    assert main(_rig_argv(r, tmp_path, "w:{r}/wrist", "w2:{r}/wrist2")) == 2
+    assert re.search(r"^--camera w2:\S+: .*no image could be read",
+                     _error(capsys).removeprefix("handeye-drake: error: "))
+    # The robot file's errors name --robot (were a FAIL verdict per camera).
+    argv = _rig_argv(r, tmp_path, "w:{r}/wrist")
+    argv[argv.index("--robot") + 1] = str(r / "wrist")
+    assert main(argv) == 2
+    assert re.search(r"^--robot \S+wrist: a folder",
+                     _error(capsys).removeprefix("handeye-drake: error: "))
+    assert not (tmp_path / "out").exists()
+
+
+
+@pytest.mark.parametrize("cameras, expected", [
+    # YAML reads ~ and yes as None and True: cameras silently named "None" and "True".
+    ("  ~: {images: wrist}\n", "camera name None: expected letters"),
+    ("  yes: {images: wrist}\n", "camera name True: expected letters"),
+    # A list of numbers for intrinsics was read as the text "[612, …]" (a FAIL verdict).
+    ("  wrist: {images: wrist, intrinsics: [612, 611, 318, 243]}\n",
+     "camera wrist: intrinsics: expected a string, got [612"),
+    ("  wrist: {images: [wrist, cell]}\n", "camera wrist: images: expected a string"),
+])
+def test_rig_yaml_wrong_types(rig_dir, tmp_path, capsys, cameras, expected):
+    rig = _rig_yaml(rig_dir, cameras)
+    assert main(["calibrate", "--rig", str(rig), "--out", str(tmp_path / "out")]) == 2
+    line = _error(capsys)
+    assert line.startswith(f"handeye-drake: error: --rig {rig}: ") and expected in line
+
+
+@pytest.mark.parametrize("extra, expected", [
+    # Were merged with the YAML's (--camera), won over it (--target) or ignored (--bag).
+    (["--camera", "w2:{r}/cell"], "--camera w2:{r}/cell: the rig's cameras are in --rig"),
+    (["--target", "charuco:5x7:0.04:0.03:DICT_5X5_100"],
+     f"--target charuco:5x7:0.04:0.03:DICT_5X5_100: --rig {{y}} gives target: {TARGET}"),
+    (["--bag", "{r}/robot_poses.tum"], "--bag: a rig YAML (--rig {y}) reads image folders"),
+])
+def test_rig_yaml_and_command_line_disagree(rig_dir, tmp_path, capsys, extra, expected):
+    rig = _rig_yaml(rig_dir, "  wrist: {images: wrist}\n  cell: {images: cell, mount: cell}\n")
+    argv = ["calibrate", "--rig", str(rig), *[x.format(r=rig_dir) for x in extra],
+            "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert _error(capsys).startswith("handeye-drake: error: " + expected.format(r=rig_dir, y=rig))
+
+
+def test_rig_out_with_a_user_file_refused_before_the_fit(rig_pngs, tmp_path, capsys):
+    # --force into a folder holding the user's cell/calibration.json: was refused only when
+    # that file came to be written, after the fit, calibration.json and report.txt written.
+    out = tmp_path / "out"
+    (out / "cell").mkdir(parents=True)
+    (out / "cell" / "calibration.json").write_text("mine")
+    argv = _rig_argv(rig_pngs, tmp_path, "w:{r}/wrist:hand:{r}/i64.yaml",
+                     "cell:{r}/cell:cell:{r}/i64.yaml", extra=("--force",))
+    assert main(argv) == 2
+    assert "cell/calibration.json exists and was not written by" in _error(capsys)
+    assert sorted(p.name for p in out.rglob("*")) == ["calibration.json", "cell"]
+    assert (out / "cell" / "calibration.json").read_text() == "mine"
 
 
 # --- session --------------------------------------------------------------------------------
@@ -195,6 +343,32 @@ def test_calibrate_refuses_complex_poses():
     X[:, 0, 3] += 1j
     with pytest.raises(ValueError, match=r"^robot: .*got ndarray of complex128"):
         calibrate(X, np.tile(np.eye(4), (5, 1, 1)))
+
+
+def test_calibrate_rig_bad_input_is_an_error_a_blind_camera_a_verdict(rig_pngs):
+    # Unreadable images, counts that do not pair and a rig with nothing to place the board were
+    # FAIL verdicts blaming the camera ("does not see the board"); a camera whose images are
+    # readable but show no board stays a verdict, with or without its intrinsics.
+    from handeye_drake.calibration.rig import RigCamera, calibrate_rig
+    r = rig_pngs
+    robot = r / "robot.tum"
+    res = calibrate_rig([RigCamera("w", r / "wrist"), RigCamera("c", r / "cell", "cell",
+                                                                 str(r / "i64.yaml"))],
+                        robot, TARGET)
+    assert res.verdict.status == "FAIL"
+    assert "camera w does not see the board" in res.cameras["w"].verdict.reasons[0].message
+    with pytest.raises(ValueError, match="^cameras: every camera is on the board's mount"):
+        calibrate_rig([RigCamera("c", r / "cell", "cell", str(r / "i64.yaml"))], robot, TARGET)
+    with pytest.raises(ValueError, match="^camera name: at most 64 characters"):
+        RigCamera("c" * 65, r / "cell")
+    (r / "wrist2" / "img_0.png").unlink()
+    with pytest.raises(ValueError, match=r"^camera w2: --images, --robot: 2 images but 3"):
+        calibrate_rig([RigCamera("w", r / "wrist"), RigCamera("w2", r / "wrist2")], robot,
+                      TARGET)
+    for k in range(3):
+        (r / "wrist" / f"img_{k}.png").write_text("not a png")
+    with pytest.raises(ValueError, match=r"^camera w: --images: no image could be read"):
+        calibrate_rig([RigCamera("w", r / "wrist")], robot, TARGET)
 
 
 # --- plan -----------------------------------------------------------------------------------

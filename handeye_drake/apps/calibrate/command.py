@@ -284,7 +284,7 @@ def options_from_args(args) -> CalibrationOptions:
 def run_calibrate_command(args) -> int:
     """Runs ``calibrate`` from parsed arguments; raises ValueError on bad input."""
     rig_cameras = getattr(args, "rig_cameras", None) or []
-    if rig_cameras or getattr(args, "rig", None):
+    if rig_cameras or getattr(args, "rig", None) is not None:
         if args.camera:
             raise ValueError(f"--camera {args.camera}: a rig's cameras are NAME:DIR; a camera "
                              "pose file calibrates one camera")
@@ -295,7 +295,22 @@ def run_calibrate_command(args) -> int:
                 ("--intrinsics", args.intrinsics is not None,
                  "give each camera's as --camera NAME:DIR:MOUNT:INTRINSICS"),
                 ("--mode", args.mode.replace("_", "-") != "eye-in-hand",
-                 "give each camera's mount as --camera NAME:DIR:hand|cell")):
+                 "give each camera's mount as --camera NAME:DIR:hand|cell"),
+                *((o, getattr(args, o[2:].replace("-", "_")) not in (None, False, default),
+                   "each camera's frame is NAME_optical_frame" if "frame" in o or "mount" in o
+                   or "urdf" in o else "a rig reads its robot file and images as they are")
+                  for o, default in (
+                      ("--format", None), ("--robot-format", None), ("--camera-format", None),
+                      ("--camera-pose-is-camera-in-target", False),
+                      ("--robot-quaternion-order", "xyzw"),
+                      ("--camera-quaternion-order", "xyzw"), ("--translation-scale", None),
+                      ("--robot-translation-scale", None), ("--camera-translation-scale", None),
+                      ("--time-scale", 1.0), ("--max-translation", MAX_TRANSLATION),
+                      ("--camera-topic", None),
+                      ("--camera-frames", None), ("--image-topic", None),
+                      ("--camera-info-topic", None), ("--max-images", DEFAULT_MAX_IMAGES),
+                      ("--child-frame", None), ("--mount-offset", None),
+                      ("--camera-urdf", None), ("--optical-frame", None)))):
             if given:
                 raise ValueError(f"{option}: not read for a rig of cameras; {instead}")
         from .rig_command import run_rig_command

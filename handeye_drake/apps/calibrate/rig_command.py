@@ -26,6 +26,7 @@ camera), ``report.txt``, and per camera ``NAME/calibration.json`` and with ``--e
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 from ...calibration.rig import RigCamera, calibrate_rig
@@ -34,6 +35,15 @@ from ...calibration.rig import RigCamera, calibrate_rig
 _MAX_RIG_BYTES = 1_000_000
 _RIG_KEYS = ("robot", "target", "board", "cameras")
 _CAMERA_KEYS = ("images", "mount", "intrinsics")
+
+
+def _is(path, test: str = "exists") -> bool:
+    """``Path(path).exists()`` / ``is_file()`` / ``is_dir()``, a name the system refuses (too
+    long, a NUL) being not there rather than an OSError."""
+    try:
+        return getattr(Path(path), test)()
+    except (OSError, ValueError):
+        return False
 
 
 def _unique_key_loader():
@@ -58,11 +68,15 @@ def _unique_key_loader():
 
 
 def check_rig_camera(cam: RigCamera, where: str) -> None:
-    """Bad input as an error naming ``where`` before any fit: a camera folder without images, an
-    intrinsics file that does not exist or does not read (they would become a FAIL verdict)."""
+    """Bad input as an error naming ``where`` before any fit: a camera folder that is not a
+    folder or holds no images, an intrinsics file or string that does not read (they would
+    become a FAIL verdict)."""
     from ...calibration.inputs import image_paths
     from ...vision.intrinsics import load_intrinsics
     if cam.topic is None:
+        if not _is(cam.images, "is_dir"):
+            raise ValueError(f"{where}: {cam.images} is not a folder; expected the folder of "
+                             "the camera's images")
         try:
             image_paths(cam.images)
         except ValueError as e:
@@ -75,33 +89,63 @@ def check_rig_camera(cam: RigCamera, where: str) -> None:
                           (IMAGE_TYPE, COMPRESSED_IMAGE_TYPE), "image topic")
         except ValueError as e:
             raise ValueError(f"{where}: {e}") from None
-    intr = cam.intrinsics
-    if isinstance(intr, (str, Path)):
-        text = str(intr).strip()
+    if isinstance(cam.intrinsics, (str, Path)):
         try:
-            if Path(text).is_file():
-                load_intrinsics(text)
-            elif "," not in text or "/" in text or Path(text).suffix.lower() in (
-                    ".yaml", ".yml", ".xml"):
-                load_intrinsics(text)  # raises: no such file, and not a spec
-        except ValueError as e:
-            if Path(text).is_file() and "no image width" in str(e):
-                return  # a file without the image size: taken from the images later
-            raise ValueError(f"{where}: {e}") from None
+            load_intrinsics(str(cam.intrinsics).strip())
+        except (ValueError, OSError) as e:
+            # A file or fx,fy,cx,cy string without the image size: taken from the images later.
+            if "no image width" not in str(e):
+                raise ValueError(f"{where}: {e}") from None
 
 
+def check_rig_images(cam: RigCamera, where: str, poses: int) -> None:
+    """A camera folder against the robot file (image k pairs with pose k): as many images as
+    poses, all of one size (read from their headers), the size of the given intrinsics."""
+    from ...calibration.inputs import _file_kind, image_paths
+    from ...vision.image_files import image_size
+    from ...vision.intrinsics import load_intrinsics
+    paths = image_paths(cam.images)
+    if len(paths) != poses:
+        raise ValueError(f"{where}: {len(paths)} images but {poses} robot poses; image k pairs "
+                         "with robot pose k, one each")
+    sizes = {}
+    for q in paths:
+        try:
+            if not _file_kind(q):   # a FIFO or device is never opened
+                with open(q, "rb") as f:
+                    size = image_size(f.read(1 << 16))
+                if size is not None:
+                    sizes.setdefault(tuple(size), q.name)
+        except OSError:
+            pass                    # unreadable: skipped with its reason by the reader
+    if len(sizes) > 1:
+        (a, qa), (b, qb) = list(sizes.items())[:2]
+        raise ValueError(f"{where}: images of different sizes ({qa} {a[0]}×{a[1]}, {qb} "
+                         f"{b[0]}×{b[1]}); one camera's images have one size — two cameras' "
+                         "images mixed?")
+    if sizes and isinstance(cam.intrinsics, (str, Path)):
+        (w, h), first = next(iter(sizes.items()))
+        try:
+            intr = load_intrinsics(str(cam.intrinsics).strip())
+        except (ValueError, OSError):
+            return                  # no image size in them (checked by check_rig_camera)
+        if (intr.width, intr.height) != (w, h):
+            raise ValueError(f"{where}: the intrinsics are for {intr.width}×{intr.height} "
+                             f"images, the camera's are {w}×{h} ({first})")
 
 
 def is_rig_camera(text: str) -> bool:
     """``--camera`` names a rig camera (NAME:DIR…) rather than a camera pose file: a name before
     the first colon and no file of that whole name."""
     name, sep, rest = str(text).partition(":")
-    if not (sep and name and rest) or Path(text).is_file():
+    if not sep or _is(text, "is_file"):
         return False
     # The names RigCamera takes (unicode letters too, as in a rig YAML); a name it refuses
-    # before an existing folder is a rig camera with a bad name, said so by RigCamera.
+    # before an existing folder is a rig camera with a bad name, said so by RigCamera (and a
+    # name without its folder, "wrist:", by parse_rig_camera).
+    folder = rest.split(":")[0]
     return (name.replace("_", "").replace("-", "").isalnum()
-            or Path(rest.split(":")[0]).is_dir())
+            or (folder != "" and _is(folder, "is_dir")))
 
 
 def parse_rig_camera(text: str, bag=None) -> RigCamera:
@@ -114,7 +158,7 @@ def parse_rig_camera(text: str, bag=None) -> RigCamera:
     if not folder:
         raise ValueError(f"--camera {text}: expected NAME:{'TOPIC' if bag else 'DIR'}"
                          "[:hand|cell[:INTRINSICS]]")
-    if bag is None and not Path(folder).exists():
+    if bag is None and not _is(folder, "exists"):
         raise ValueError(f"--camera {text}: {folder} not found")
     try:
         if bag is not None:
@@ -160,13 +204,21 @@ def read_rig_yaml(path) -> dict:
     for name, c in doc["cameras"].items():
         if not isinstance(c, dict) or "images" not in c:
             raise ValueError(f"--rig {path}: camera {name}: expected {{images: DIR, …}}")
+        if name is None or isinstance(name, bool):
+            # YAML reads ~, null, yes, no, true as these: a camera silently named "None".
+            raise ValueError(f"--rig {path}: camera name {name!r}: expected letters, digits, _ "
+                             "or - (quote it)")
+        for key in _CAMERA_KEYS:
+            if c.get(key) is not None and not isinstance(c[key], str):
+                raise ValueError(f"--rig {path}: camera {name}: {key}: expected a string, got "
+                                 f"{c[key]!r:.80}")
         unknown = sorted(str(k) for k in c if k not in _CAMERA_KEYS)
         if unknown:
             raise ValueError(f"--rig {path}: camera {name}: unknown key "
                              f"{', '.join(map(repr, unknown))} (expected "
                              f"{', '.join(_CAMERA_KEYS)})")
         intr = c.get("intrinsics")
-        if intr is not None and not Path(rel(intr)).exists():
+        if intr is not None and not _is(rel(intr), "exists"):
             intr_arg = str(intr)              # an inline spec (fx,fy,cx,cy,…)
         else:
             intr_arg = rel(intr)
@@ -179,15 +231,77 @@ def read_rig_yaml(path) -> dict:
             "board": doc.get("board"), "cameras": cams}
 
 
+def _robot_poses(robot) -> int:
+    """The number of poses in the robot file (its errors named ``--robot``)."""
+    from ...recorded.formats import infer_format, read_poses
+    try:
+        if _is(robot, "is_dir"):
+            raise ValueError("a folder; expected the robot pose file")
+        return len(read_poses(robot, "robot", infer_format(robot)))
+    except ValueError as e:
+        text = str(e)
+        raise ValueError(text if text.startswith("--robot") else f"--robot {text}"
+                         if text.startswith(f"{robot}:") else f"--robot {robot}: {text}") from None
+
+
+def _check_free(out, names) -> None:
+    """Every file the rig writes, checked before the fit as ``OutputDir.path`` checks it when
+    writing (else a user's file is found only after the fit, half the outputs written)."""
+    for name in names:
+        p = out.root / name
+        for q in reversed(p.parents[:len(Path(name).parts) - 1]):
+            if q.is_symlink() or (os.path.lexists(q) and not q.is_dir()):
+                raise ValueError(f"--out {out.root}: {q.relative_to(out.root)} exists and is not "
+                                 f"a directory; the rig writes {name} there — not touching it "
+                                 "(choose another --out)")
+        if p.is_symlink() or p.is_dir() or (os.path.lexists(p) and name not in out.earlier):
+            raise ValueError(f"--out {out.root}: {name} exists and was not written by "
+                             "'handeye-drake calibrate'; not overwriting it (choose another --out)")
+
+
+def _named(error: ValueError, where: dict) -> str:
+    """A library error "camera NAME: …" with the argument that gave camera NAME."""
+    text = str(error)
+    for name, arg in where.items():
+        if text.startswith(f"camera {name}: "):
+            rest = text[len(f"camera {name}: "):]
+            if "robot_frames:" in rest:
+                return f"--robot-frames: {rest}"
+            return f"{arg}: {rest}"
+    return text
+
+
 def run_rig_command(args, rig_cameras, options) -> int:
     """The rig calibration of parsed arguments (``command.run_calibrate_command`` hands over
     when ``--camera NAME:DIR`` or ``--rig`` is given)."""
     from ..outputs import prepare_output_dir
     robot, target, board = args.robot, args.target, getattr(args, "board_mount", None)
+    rig = getattr(args, "rig", None)
+    if rig is not None and not str(rig).strip():
+        raise ValueError("--rig: empty; expected the rig's YAML file")
+    if rig and rig_cameras:
+        raise ValueError(f"--camera {rig_cameras[0]}: the rig's cameras are in --rig {rig}; "
+                         "give them in one place")
+    if rig and args.bag:
+        raise ValueError(f"--bag: a rig YAML (--rig {rig}) reads image folders; for a bag give "
+                         "--camera NAME:TOPIC[:MOUNT] per camera")
+    if args.bag and robot:
+        raise ValueError("--robot: not read with --bag; the robot's poses are the bag's tf "
+                         "(--robot-frames BASE:EE)")
     cams = [parse_rig_camera(t, args.bag) for t in rig_cameras]
-    if getattr(args, "rig", None):
-        doc = read_rig_yaml(args.rig)
+    where = {c.name: f"--camera {t}" for c, t in zip(cams, rig_cameras)}
+    if rig:
+        doc = read_rig_yaml(rig)
         cams += doc["cameras"]
+        where = {c.name: f"--rig {rig}: camera {c.name}" for c in cams}
+        # Given on the command line and in the file: which one holds is not to be guessed.
+        for option, given, key in (("--robot", robot, "robot"), ("--target", target, "target"),
+                                   ("--board-mount", board, "board")):
+            mine = doc[key]
+            if given and mine and (Path(given).resolve() != Path(mine).resolve()
+                                   if key == "robot" else given != mine):
+                raise ValueError(f"{option} {given}: --rig {rig} gives {key}: {mine}; give it "
+                                 "in one place")
         robot, target = robot or doc["robot"], target or doc["target"]
         board = board or doc["board"]
     board = board or "cell"
@@ -198,24 +312,59 @@ def run_rig_command(args, rig_cameras, options) -> int:
         raise ValueError("--target: the calibration target is needed with a rig (e.g. "
                          "charuco:7x5:0.04:0.03:DICT_5X5_100)")
     if board not in ("cell", "hand"):
-        raise ValueError(f"--board-mount: expected cell or hand, got {board!r}")
+        raise ValueError(f"{'--board-mount' if args.board_mount else f'--rig {rig}: board'}: "
+                         f"expected cell or hand, got {board!r}")
     if args.images:
-        raise ValueError("--camera NAME:DIR: a rig takes its images from each camera's "
-                         "directory; leave out --images")
+        raise ValueError("--images: a rig takes its images from each camera's folder "
+                         "(--camera NAME:DIR or --rig); leave out --images")
     names = [c.name for c in cams]
+    who = f"--rig {rig}" if rig else "--camera"
     if len(set(names)) != len(names):
-        raise ValueError(f"--camera: camera names must differ, got {', '.join(names)}")
+        raise ValueError(f"{who}: camera names must differ, got {', '.join(names)}")
     # Two cameras cannot take the same images: one source given twice is a typo.
     sources = {}
     for c in cams:
         key = (str(Path(c.images).resolve()), c.topic)
         if key in sources:
-            raise ValueError(f"--camera: cameras {sources[key]} and {c.name} read the same "
+            raise ValueError(f"{who}: cameras {sources[key]} and {c.name} read the same "
                              f"{'topic ' + c.topic if c.topic else 'images ' + str(c.images)}")
         sources[key] = c.name
+    if all(c.mount == board for c in cams):
+        raise ValueError(f"{who}: every camera is on the board's mount ({board}): each sees one "
+                         "fixed view, nothing places the board; a rig needs a camera on the "
+                         f"other mount (or --board-mount {'hand' if board == 'cell' else 'cell'}"
+                         " if the board is there)")
+    if args.parent_frame is not None:
+        from ...recorded.exports import _check_name
+        _check_name(args.parent_frame, "--parent-frame")
+        if len({c.mount for c in cams}) > 1:
+            raise ValueError(f"--parent-frame {args.parent_frame}: one parent for cameras on "
+                             "the hand and in the cell; their frames hang from different links")
+    from ...vision.targets import parse_target
+    try:
+        parse_target(target)
+    except ValueError as e:
+        raise ValueError(f"--target {target}: {e}") from None
+    if not args.bag:
+        poses = _robot_poses(robot)
+        for c in cams:
+            check_rig_images(c, where[c.name], poses)
+    if args.export:
+        from ...recorded.exports import _check_name
+        for c in cams:   # the exports' frame NAME_optical_frame, refused before the fit
+            _check_name(f"{c.name}_optical_frame", f"{where[c.name]}: camera name")
     out = prepare_output_dir(args.out, "calibrate", args.force)
-    result = calibrate_rig(cams, robot, target, board, options,
-                           robot_frames=args.robot_frames)
+    from ...recorded.exports import FILE_NAMES, parse_formats
+    files = [f for fmt in parse_formats(args.export) for f in FILE_NAMES[fmt]] \
+        if args.export else []
+    _check_free(out, ["calibration.json", "report.txt"] + [
+        f"{c.name}/{f}" for c in cams for f in ["calibration.json"] + files])
+    try:
+        result = calibrate_rig(cams, robot, target, board, options,
+                               robot_frames=args.robot_frames)
+    except ValueError as e:
+        raise ValueError(_named(e, where)) from None
+    base, ee = (args.robot_frames.split(":") + [""])[:2] if args.bag else (None, None)
     written = []
     p = out.path("calibration.json")
     p.write_text(json.dumps(result.to_json(), indent=1) + "\n")
@@ -231,7 +380,9 @@ def run_rig_command(args, rig_cameras, options) -> int:
                                  "rig_verdict": doc["rig"]["verdict"]}, indent=1) + "\n")
         written.append(p)
         if args.export and cam.verdict.status != "FAIL" and cam.X is not None:
-            for fname, text in result.export(name, args.export, args.parent_frame).items():
+            # From a bag the parent is the robot's own frame (--robot-frames), not tool0.
+            parent = args.parent_frame or ((ee if cam.mount == "hand" else base) or None)
+            for fname, text in result.export(name, args.export, parent).items():
                 q = out.path(f"{name}/{fname}")
                 q.write_text(text)
                 if q.suffix == ".sh":
