@@ -1,7 +1,9 @@
 """Multi-camera rigs: N cameras on one robot — on the hand (X_EC) or fixed in the cell (X_BC), in
 any mix — calibrated jointly from their images of one board: each camera's images paired with
-the robot poses by index (image k of every camera taken at robot pose k), or from a bag, one
-image topic per camera paired with the robot's tf in time.
+the robot poses by index (image k of every camera taken at robot pose k) or in time (each image's
+stamp from its file name or its folder's stamps file, ``recorded.image_stamps``; the robot pose
+interpolated there, each camera's clock offset estimated on its own — ``inputs.choose_pairing``
+decides), or from a bag, one image topic per camera paired with the robot's tf in time.
 
 Stages (``calibrate_rig``):
 
@@ -68,6 +70,9 @@ class RigCamera:
     #: With a bag (``images`` its path): the camera's image topic; its images pair with the
     #: robot's tf in time (as ``calibrate --bag --image-topic``), not by index.
     topic: str | None = None
+    #: Images paired in time: this camera's clock offset (s, camera stamp − robot time), or None
+    #: for the options' ``time_offset_s`` (default: estimated, each camera on its own).
+    time_offset: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.replace("_", "").replace(
@@ -76,6 +81,11 @@ class RigCamera:
         if self.mount not in MOUNTS:
             raise ValueError(f"camera {self.name}: mount must be one of {MOUNTS}, got "
                              f"{self.mount!r}")
+        if self.time_offset is not None and not (
+                isinstance(self.time_offset, (int, float)) and not isinstance(
+                    self.time_offset, bool) and math.isfinite(self.time_offset)):
+            raise ValueError(f"camera {self.name}: time_offset: expected seconds, got "
+                             f"{self.time_offset!r}")
 
 
 @dataclass(eq=False)
@@ -107,6 +117,19 @@ class CameraResult:
     def mode(self) -> str:
         return "eye_in_hand" if self.mount == "hand" else "eye_to_hand"
 
+    def timing(self) -> str:
+        """How its images were placed in time (image folders paired by time), else ""."""
+        info = self.streams.inputs.get("images", {}) if self.streams is not None else {}
+        if info.get("paired_by") != "time" or "bag" in self.streams.inputs:
+            return ""
+        text = "paired in time"
+        a = self.alone.aligned if self.alone is not None else None
+        if a is not None:
+            text += (f": clock offset {a.time_offset:+.4f} s (camera stamp − robot time; "
+                     f"{self.alone.time_offset_mode}), {len(a)} of {self.detected} detected "
+                     "images within the robot's samples")
+        return text
+
     def sigma(self) -> tuple[np.ndarray, np.ndarray] | None:
         if self.covariance is None:
             return None
@@ -134,6 +157,9 @@ class RigResult:
         for name, c in self.cameras.items():
             out.append(f"camera {name} ({c.mount}, {c.key}): {c.verdict.line()}; board found in "
                        f"{c.detected} of {c.images} images")
+            timing = c.timing()
+            if timing:
+                out.append(f"  {timing}")
             out += [f"  {r.level}: {r.message}" for r in c.verdict.reasons]
             if c.X is not None and c.covariance is not None:
                 sr, st = c.sigma()
@@ -155,6 +181,8 @@ class RigResult:
         def cam(c: CameraResult):
             d = {"mount": c.mount, "mode": c.mode, "verdict": c.verdict.to_dict(),
                  "images": c.images, "detected": c.detected, "agreement": c.agreement}
+            if c.streams is not None and "pairing" in c.streams.inputs.get("images", {}):
+                d["pairing"] = c.streams.inputs["images"]["pairing"]
             if c.X is not None and c.covariance is not None:
                 K, dist = intrinsics_matrix(c.intrinsics)
                 sr, st = c.sigma()
@@ -277,9 +305,11 @@ def _moved_checks(results, moving, board_mount) -> None:
                 moving.remove(c)
 
 
-def _settings(options, streams, mode):
+def _settings(options, streams, mode, time_offset=None):
     s = options.stream_settings(streams, True)
     s["mode"] = mode
+    if time_offset is not None:
+        s["time_offset"] = float(time_offset)
     return s
 
 
@@ -323,16 +353,19 @@ def _joint(cams, board_mount, X_board0, factors):
 
 
 def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=None,
-                  robot_frames: str = "base_link:tool0") -> RigResult:
+                  robot_frames: str = "base_link:tool0", pairing: str = "auto") -> RigResult:
     """Calibrates the rig (module docstring).
 
     Args:
         cameras: ``RigCamera`` list (distinct names).
-        robot: the robot pose file (X_BE), one pose per image index (None when every camera
-            reads a bag: the robot's poses are its tf, ``robot_frames`` BASE:EE).
+        robot: the robot pose file (X_BE), one pose per image index, or timestamped poses at
+            any rate for images paired in time (None when every camera reads a bag: the robot's
+            poses are its tf, ``robot_frames`` BASE:EE).
         target: the board spec (e.g. ``charuco:7x5:0.04:0.03:DICT_5X5_100``).
         board_mount: "cell" (the board fixed in the cell: X_BT) or "hand" (on the flange: X_ET).
         options: ``api.CalibrationOptions`` (its mode is ignored: each camera's mount decides).
+        pairing: image folders: "auto", "index" or "time" (``inputs.choose_pairing``, per
+            camera; "time" refuses a folder without stamps, naming it).
     """
     from .api import CalibrationOptions
     from .corners import calibrate_images
@@ -363,8 +396,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                                       cam.intrinsics)
             else:
                 s = image_streams([str(cam.images)] if isinstance(cam.images, (str, Path))
-                                  else cam.images, robot, target, cam.intrinsics)
+                                  else cam.images, robot, target, cam.intrinsics,
+                                  pairing=pairing)
         except ValueError as e:
+            if "--pairing" in str(e):
+                raise ValueError(f"camera {cam.name}: {e}") from None
             res.verdict = _fail("no_board", f"camera {cam.name}: {e}" if "found in only" not in
                                 str(e) else f"camera {cam.name} does not see the board: {e}")
             continue
@@ -388,7 +424,8 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         else:
             mode = "eye_in_hand" if cam.mount == "hand" else "eye_to_hand"
             try:
-                alone = calibrate_images(s, _settings(options, s, mode), options.refine_intrinsics)
+                alone = calibrate_images(s, _settings(options, s, mode, cam.time_offset),
+                                         options.refine_intrinsics)
             except ValueError as e:
                 res.verdict = _fail("alone", f"camera {cam.name} alone: {e}")
                 continue
