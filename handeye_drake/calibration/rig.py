@@ -319,23 +319,45 @@ def _start_fixed(X_board, X_CT):
     return X_board @ inverse(ref)
 
 
+def _image_times(c, board_mount):
+    """Robot-clock times (s) of the images in camera ``c``'s block, None when paired by index."""
+    if c.mount == board_mount:
+        t = c.streams.camera.timestamps
+        return None if t is None else np.asarray(t, float)
+    a = c.alone.aligned
+    return None if a.camera_times is None else np.asarray(a.camera_times, float) - a.time_offset
+
+
+def _instants(cams, board_mount):
+    """The instant of each camera's images, shared by the images taken together (the
+    jackknife leaves one instant out at a time): image k of every camera when paired by index;
+    in time, bins one camera period wide (the shortest median period of the cameras) on the
+    robot's clock — cameras at different rates have no common image index."""
+    times = [_image_times(c, board_mount) for c in cams]
+    if any(t is None for t in times):
+        return [np.asarray(c.streams.camera.lines if c.mount == board_mount
+                           else c.alone.aligned.camera_lines, int) - 1 for c in cams]
+    periods = [float(np.median(np.diff(t))) for t in times if len(t) > 1]
+    width = min(periods) if periods else 1.0
+    t0 = min(float(t.min()) for t in times if len(t))
+    return [np.floor((t - t0) / width).astype(int) for t in times]
+
+
 def _blocks(cams, board_mount):
     """RigBlocks of the cameras (list of CameraResult with streams), camera index = position: a
     moving camera's corners with the robot-side pose its own calibration paired with each image
-    (``corners.corner_data``: by index for image folders, in time for bags), a fixed view's with
-    X_R = I."""
+    (``corners.corner_data``: by index for image folders, in time for bags and stamped
+    folders), a fixed view's with X_R = I; instants by ``_instants``."""
     from .corners import corner_data
     blocks = []
-    for i, c in enumerate(cams):
+    for i, (c, instants) in enumerate(zip(cams, _instants(cams, board_mount))):
         s = c.streams
         if c.mount == board_mount:
             data = CornerData.from_lists(np.repeat(np.eye(4)[None], len(s.detections), axis=0),
                                          [d.object_points for d in s.detections],
                                          [d.image_points for d in s.detections])
-            instants = np.asarray(s.camera.lines, int) - 1
         else:
             data, _ = corner_data(c.alone, s.detections)
-            instants = np.asarray(c.alone.aligned.camera_lines, int) - 1
         blocks.append(RigBlock(i, 0, data, instants, pose_error_frame(c.mount, board_mount),
                                c.mount == board_mount))
     return blocks
