@@ -122,6 +122,8 @@ class CameraResult:
         info = self.streams.inputs.get("images", {}) if self.streams is not None else {}
         if info.get("paired_by") != "time" or "bag" in self.streams.inputs:
             return ""
+        if self.alone is None and self.verdict.status != "FAIL":
+            return "stamped images: one fixed view of the board, no robot pose paired with them"
         text = "paired in time"
         a = self.alone.aligned if self.alone is not None else None
         if a is not None:
@@ -545,10 +547,12 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
             # instant is left out: their σ are widened by it (never narrowed).
             jack = jackknife_factors(fit.rig_blocks, fit, pairs)
             if jack:
-                rig.notes.append("σ widened by a delete-one-instant jackknife: " + ", ".join(
+                widened = ", ".join(
                     f"{cams[k[1]].name if k[0] == 'camera' else cams[k[1]].name + '→' + cams[k[2]].name}"
-                    f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0) or
-                    "σ checked by a delete-one-instant jackknife: not widened")
+                    f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0)
+                rig.notes.append("σ widened by a delete-one-instant jackknife: " + widened
+                                 if widened else
+                                 "σ checked by a delete-one-instant jackknife: not widened")
             for i, c in enumerate(cams):
                 c.X = fit.X_cameras[i]
                 c.variance_factor = jack.get(("camera", i), 1.0)

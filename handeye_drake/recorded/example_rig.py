@@ -230,7 +230,7 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
 
 
 #: File-name styles of ``generate_stamped_rig`` (``recorded.image_stamps``' conventions).
-STAMP_STYLES = ("seconds", "nanoseconds", "sec_nsec", "file")
+STAMP_STYLES = ("seconds", "file", "nanoseconds", "sec_nsec")
 
 
 def _stamp_name(style: str, stamp: float, k: int) -> str:
@@ -272,8 +272,8 @@ def generate_stamped_rig(out_dir, seed: int = 0, num_poses: int = 8, cameras: di
     from ``start`` (epoch seconds), along a smooth joint path (``_smooth_joint_path``).
     ``robot_poses.tum``: the flange pose X_BE at ``robot_rate`` Hz stamped on the robot's clock
     (the truth's time), with ``robot_error`` as ``generate_example_rig`` (a function of the joint
-    angles). Camera NAME (``cameras`` as ``generate_example_rig``'s; default ``wrist`` and
-    ``cell``) takes an image every ``periods[NAME]`` s (default 0.35 s, 0.5 s, 0.6 s, … by camera)
+    angles). Camera NAME (``cameras`` as ``generate_example_rig``'s, default ``DEFAULT_RIG``)
+    takes an image every ``periods[NAME]`` s (default 0.35 s, 0.5 s, 0.6 s, … by camera)
     from a phase of its own, drops each with probability ``drop``, and stamps it on its clock:
     true time + ``offsets[NAME]`` (default +0.03 s, −0.02 s, +0.045 s, … — the ``time_offset``
     convention, camera stamp − robot time). ``styles[NAME]`` in ``STAMP_STYLES`` names the files
@@ -285,7 +285,7 @@ def generate_stamped_rig(out_dir, seed: int = 0, num_poses: int = 8, cameras: di
     from ..vision.intrinsics import write_intrinsics_yaml
     from ..vision.targets import format_target, parse_target
 
-    cameras = dict(cameras or {"wrist": DEFAULT_RIG["wrist"], "cell": DEFAULT_RIG["cell"]})
+    cameras = dict(cameras or DEFAULT_RIG)
     names = list(cameras)
     periods = {n: (periods or {}).get(n, (0.35, 0.5, 0.6, 0.7, 0.8)[i % 5])
                for i, n in enumerate(names)}
