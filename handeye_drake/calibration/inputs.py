@@ -629,10 +629,12 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     keep = [k for k, _ in found]
     # Detected poses are at the declared target size: one far off (a square given in inches
     # read as metres) is for the corner-level fit to measure and name, not a pose file's units.
+    # In time, the folder is named: an error of the alignment (another clock) says whose.
+    source = f"images ({len(paths)})" if how == "index" else \
+        f"images ({len(paths)}) of {', '.join(spec for spec, _ in groups)}"
     camera = pose_stream(np.array([d.X_CT for _, d in found]),
-                         None if stamps is None else stamps[keep],
-                         source=f"images ({len(paths)})", lines=[k + 1 for k in keep],
-                         max_translation=None)
+                         None if stamps is None else stamps[keep], source=source,
+                         lines=[k + 1 for k in keep], max_translation=None)
     robot_kept = robot if how == "time" else PoseStream(
         robot.poses[keep], None, robot.source, tuple(int(robot.lines[k]) for k in keep),
         robot.sha256)
