@@ -607,7 +607,7 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
                         f"{', …' if len(odd) > 3 else ''})") if odd else ""
             raise ValueError(f"--images, --robot: {len(paths)} images{odd_note} but "
                              f"{len(robot)} robot poses in {robot_path}; images pair with poses "
-                             f"in order, one each ({why})")
+                             f"in order, one each" + (f" ({why})" if why else ""))
 
         def frames():
             return _file_frames(paths, robot)
