@@ -244,12 +244,13 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
                 time_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
                 camera_quaternion_order: str = "xyzw", robot_format: str | None = None,
                 camera_format: str | None = None, drawings_dir=None,
-                robot_timestamps=None, camera_timestamps=None) -> Streams:
+                robot_timestamps=None, camera_timestamps=None, pairing: str = "auto") -> Streams:
     """``Streams`` of one of: ``robot`` and ``camera`` pose files — or poses in memory: each an
     (N, 4, 4) array or a list of 4×4 transforms (X_BE, X_CT), or a ``PoseStream``, with
     ``robot_timestamps`` and ``camera_timestamps`` (s) optional (without them the samples pair
     by index); ``images`` of a ``target``
-    with the ``robot`` pose file; a ``bag`` with ``robot_frames`` and ``camera_topic``,
+    with the ``robot`` pose file (``pairing``: "auto", "index" or "time", ``inputs.
+    choose_pairing``); a ``bag`` with ``robot_frames`` and ``camera_topic``,
     ``camera_frames`` or ``image_topic`` (with ``target``). The other arguments are the reading
     options of the command line (``--format``, ``--robot-translation-scale``, …; None
     ``max_translation``: the readers' default). ValueError naming the argument."""
@@ -284,7 +285,7 @@ def read_inputs(robot=None, camera=None, *, images=None, bag=None,
     if images is not None:
         return image_streams(images, robot, target, intrinsics, robot_format or format,
                              robot_translation_scale, robot_quaternion_order,
-                             drawings_dir=drawings_dir)
+                             drawings_dir=drawings_dir, pairing=pairing)
     return file_streams(robot, camera, format, camera_pose_is_camera_in_target,
                         robot_translation_scale, camera_translation_scale,
                         MAX_TRANSLATION if max_translation is None else max_translation,

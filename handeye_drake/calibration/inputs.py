@@ -234,16 +234,6 @@ def image_groups(specs) -> list[tuple[str, list[Path]]]:
     return groups
 
 
-def pairing_note(groups) -> str:
-    """How the images were paired with the robot poses, for the printout and the JSON."""
-    if len(groups) == 1:
-        return f"images paired with the robot poses in order: {groups[0][0]} in natural " \
-               f"file-name order ({len(groups[0][1])})"
-    parts = ", then ".join(f"{spec} ({len(files)})" for spec, files in groups)
-    return (f"images paired with the robot poses in order: {parts} — each argument's files in "
-            "natural file-name order, the arguments in the order given")
-
-
 @dataclass
 class ImageRecord:
     """What happened to one image: detected (with its reprojection RMS) or skipped (why).
@@ -499,16 +489,101 @@ def _require_found(records, found, target_spec, what: str):
                      f"{len(records)} images (≥ 3 needed): {listed}{hint}")
 
 
+#: How images pair with the robot poses: "auto" (in time when every image has a stamp and the
+#: robot's stamps are times, by index otherwise), "index" (image k ↔ pose k), "time".
+PAIRINGS = ("auto", "index", "time")
+#: Image stamps this far (s) outside the robot's time span at most still read as the robot's
+#: clock (auto pairing; a clock offset is at most this large — ``--time-offset-range``).
+CLOCK_MARGIN_S = 1.0
+
+
+def robot_stamp_problem(robot: PoseStream) -> str:
+    """"" when the robot's stamps place its poses in time, else why not (none, or the indices
+    0..N−1 or 1..N a tool wrote in the time column)."""
+    if not robot.has_timestamps:
+        return f"{robot.source} has no time stamps"
+    t = np.asarray(robot.timestamps, float)
+    if len(t) > 1 and t[0] in (0.0, 1.0) and np.array_equal(t, t[0] + np.arange(len(t))):
+        return (f"the stamps of {robot.source} are the indices {int(t[0])}…{int(t[-1])}, not "
+                "times")
+    return ""
+
+
+def choose_pairing(groups, robot: PoseStream, pairing: str = "auto"):
+    """("index" | "time", stamps per image (s) or None, note) for the image ``groups``
+    (``image_groups``) and the robot stream: time when asked (ValueError naming the folder whose
+    stamps are missing or ambiguous, or the robot file), or with "auto" when every image has a
+    stamp (``recorded.image_stamps``), the robot's stamps are times and they overlap the robot's
+    time span (±``CLOCK_MARGIN_S``: else the camera has another clock); index otherwise, the
+    note saying why not time."""
+    from ..recorded.image_stamps import image_stamps
+    if pairing not in PAIRINGS:
+        raise ValueError(f"--pairing: expected one of {', '.join(PAIRINGS)}, got {pairing!r}")
+    if pairing == "index":
+        return "index", None, "--pairing index"
+    found = [image_stamps(spec, files) for spec, files in groups]
+    image_why = next((s.problem for s in found if s.problem), "")
+    robot_why = robot_stamp_problem(robot)
+    if pairing == "time" and (image_why or robot_why):
+        raise ValueError(f"--pairing time: {image_why or robot_why}")
+    if image_why or robot_why:
+        # Images without any stamp pair by index as they always did: nothing to say.
+        plain = all(s.unstamped for s in found if s.problem) and image_why
+        return "index", None, "" if plain else f"not in time: {image_why or robot_why}"
+    stamps = np.concatenate([s.stamps for s in found])
+    sources = "; ".join(f"{spec}: {s.source}" for (spec, _), s in zip(groups, found))
+    if len(groups) > 1:
+        order = np.sort(stamps)
+        if np.any(np.diff(order) <= 0):
+            why = "two images of different folders have the same stamp: ambiguous"
+            if pairing == "time":
+                raise ValueError(f"--pairing time: {why} ({sources})")
+            return "index", None, f"not in time: {why}"
+    t0, t1 = float(robot.timestamps[0]), float(robot.timestamps[-1])
+    inside = (stamps >= t0 - CLOCK_MARGIN_S) & (stamps <= t1 + CLOCK_MARGIN_S)
+    if pairing == "auto" and not inside.any():
+        return "index", None, (f"not in time: the image stamps ({sources}; "
+                               f"[{stamps.min():.6f}, {stamps.max():.6f}] s) are nowhere in the "
+                               f"time span of {robot.source} ([{t0:.6f}, {t1:.6f}] s): another "
+                               "clock")
+    return "time", stamps, sources
+
+
+def pairing_note(groups, how: str = "index", why: str = "") -> str:
+    """How the images were paired with the robot poses, for the printout and the JSON."""
+    if how == "time":
+        return (f"images paired with the robot poses in time: the robot pose interpolated at "
+                f"each image's stamp (minus the camera's clock offset), stamps from {why}")
+    tail = f" ({why})" if why else ""
+    if len(groups) == 1:
+        return f"images paired with the robot poses in order: {groups[0][0]} in natural " \
+               f"file-name order ({len(groups[0][1])}){tail}"
+    parts = ", then ".join(f"{spec} ({len(files)})" for spec, files in groups)
+    return (f"images paired with the robot poses in order: {parts} — each argument's files in "
+            f"natural file-name order, the arguments in the order given{tail}")
+
+
+def _stamped_frames(paths, stamps):
+    """Frames of image files paired in time: each with its stamp, no robot line."""
+    for p, t in zip(paths, stamps):
+        image, why = _read_image(p)
+        yield _Frame(ImageRecord(str(p), None, reason=why, stamp=float(t)), image,
+                     f"detections/{p.stem}.png")
+
+
 def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fmt=None,
                   robot_translation_scale: float = 1.0, robot_quaternion_order: str = "xyzw",
-                  drawings_dir=None) -> Streams:
-    """Detects the target in each image and pairs the images, in ``image_paths`` order, with
-    the robot poses in file order (N images ↔ N poses; timestamps are not used for the pairing).
-    Images where the target is not found are skipped, with the reason. Without
-    ``intrinsics_spec`` the intrinsics are calibrated from the same images first.
-    ``drawings_dir``: an ``apps.outputs.OutputDir`` to write each image with the detection drawn.
-    The images are read from disk as they are needed (twice when the intrinsics are calibrated
-    from them), never all held in memory.
+                  drawings_dir=None, pairing: str = "auto") -> Streams:
+    """Detects the target in each image and pairs the images with the robot poses
+    (``choose_pairing``): by index, in ``image_paths`` order with the robot poses in file order
+    (N images ↔ N poses), or in time, each image's stamp (``recorded.image_stamps``: its file
+    name or the folder's stamps file) giving the camera stream's timestamps — the robot pose at
+    each is then interpolated, the clock offset estimated, images too far from any robot sample
+    dropped (``calibrate_streams``, as for a bag). Images where the target is not found are
+    skipped, with the reason. Without ``intrinsics_spec`` the intrinsics are calibrated from the
+    same images first. ``drawings_dir``: an ``apps.outputs.OutputDir`` to write each image with
+    the detection drawn. The images are read from disk as they are needed (twice when the
+    intrinsics are calibrated from them), never all held in memory.
     """
     from ..vision.targets import parse_target
     target = parse_target(target_spec) if isinstance(target_spec, str) else target_spec
@@ -518,22 +593,31 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     robot_fmt = fmt or infer_format(robot_path)
     robot = read_poses(robot_path, "robot", robot_fmt, False, robot_translation_scale)
     robot = _reorder(robot, robot_quaternion_order, "--robot-quaternion-order", robot_fmt)
-    if len(paths) != len(robot):
-        odd = [f"{q.name} ({_file_kind(q)})" for q in paths if _file_kind(q)]
-        odd_note = (f" ({len(odd)} of them not regular files: {', '.join(odd[:3])}"
-                    f"{', …' if len(odd) > 3 else ''})") if odd else ""
-        raise ValueError(f"--images, --robot: {len(paths)} images{odd_note} but {len(robot)} "
-                         f"robot poses in {robot_path}; images pair with poses in order, one "
-                         "each")
-    w, h = _first_size(_file_frames(paths, robot), "--images")
+    how, stamps, why = choose_pairing(groups, robot, pairing)
+    if how == "time":
+        order = np.argsort(stamps, kind="stable")
+        paths, stamps = [paths[k] for k in order], stamps[order]
+
+        def frames():
+            return _stamped_frames(paths, stamps)
+    else:
+        if len(paths) != len(robot):
+            odd = [f"{q.name} ({_file_kind(q)})" for q in paths if _file_kind(q)]
+            odd_note = (f" ({len(odd)} of them not regular files: {', '.join(odd[:3])}"
+                        f"{', …' if len(odd) > 3 else ''})") if odd else ""
+            raise ValueError(f"--images, --robot: {len(paths)} images{odd_note} but "
+                             f"{len(robot)} robot poses in {robot_path}; images pair with poses "
+                             f"in order, one each" + (f" ({why})" if why else ""))
+
+        def frames():
+            return _file_frames(paths, robot)
+    w, h = _first_size(frames(), "--images")
     intrinsics_note, intrinsics_std = "", None
     if intrinsics_spec is not None:
         intrinsics = _given_intrinsics(intrinsics_spec, w, h)
     else:
-        intrinsics, intrinsics_std, intrinsics_note = _self_calibrated(
-            _file_frames(paths, robot), target, w, h)
-    records, found = _detect_frames(_file_frames(paths, robot), target, intrinsics,
-                                    drawings_dir)
+        intrinsics, intrinsics_std, intrinsics_note = _self_calibrated(frames(), target, w, h)
+    records, found = _detect_frames(frames(), target, intrinsics, drawings_dir)
     try:
         _require_found(records, found, target_spec, "--images")
     except ValueError as e:
@@ -545,15 +629,19 @@ def image_streams(image_specs, robot_path, target_spec, intrinsics_spec=None, fm
     keep = [k for k, _ in found]
     # Detected poses are at the declared target size: one far off (a square given in inches
     # read as metres) is for the corner-level fit to measure and name, not a pose file's units.
-    camera = pose_stream(np.array([d.X_CT for _, d in found]), None,
-                         source=f"images ({len(paths)})", lines=[k + 1 for k in keep],
-                         max_translation=None)
-    robot_kept = PoseStream(robot.poses[keep], None, robot.source,
-                            tuple(int(robot.lines[k]) for k in keep), robot.sha256)
+    # In time, the folder is named: an error of the alignment (another clock) says whose.
+    source = f"images ({len(paths)})" if how == "index" else \
+        f"images ({len(paths)}) of {', '.join(spec for spec, _ in groups)}"
+    camera = pose_stream(np.array([d.X_CT for _, d in found]),
+                         None if stamps is None else stamps[keep], source=source,
+                         lines=[k + 1 for k in keep], max_translation=None)
+    robot_kept = robot if how == "time" else PoseStream(
+        robot.poses[keep], None, robot.source, tuple(int(robot.lines[k]) for k in keep),
+        robot.sha256)
     inputs = {"images": {"count": len(paths), "detected": len(keep), "target": str(target_spec),
                          "intrinsics": str(intrinsics_spec) if intrinsics_spec else
                          "calibrated from the images", "intrinsics_note": intrinsics_note,
-                         "pairing": pairing_note(groups)},
+                         "pairing": pairing_note(groups, how, why), "paired_by": how},
               "robot": {"path": str(robot_path), "sha256": robot.sha256, "samples": len(robot),
                         "format": robot_fmt, "translation_scale": robot_translation_scale}}
     resampler = None if intrinsics_std is None else _resampler([d for _, d in found], intrinsics,

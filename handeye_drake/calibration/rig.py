@@ -1,7 +1,9 @@
 """Multi-camera rigs: N cameras on one robot — on the hand (X_EC) or fixed in the cell (X_BC), in
 any mix — calibrated jointly from their images of one board: each camera's images paired with
-the robot poses by index (image k of every camera taken at robot pose k), or from a bag, one
-image topic per camera paired with the robot's tf in time.
+the robot poses by index (image k of every camera taken at robot pose k) or in time (each image's
+stamp from its file name or its folder's stamps file, ``recorded.image_stamps``; the robot pose
+interpolated there, each camera's clock offset estimated on its own — ``inputs.choose_pairing``
+decides), or from a bag, one image topic per camera paired with the robot's tf in time.
 
 Stages (``calibrate_rig``):
 
@@ -68,6 +70,9 @@ class RigCamera:
     #: With a bag (``images`` its path): the camera's image topic; its images pair with the
     #: robot's tf in time (as ``calibrate --bag --image-topic``), not by index.
     topic: str | None = None
+    #: Images paired in time: this camera's clock offset (s, camera stamp − robot time), or None
+    #: for the options' ``time_offset_s`` (default: estimated, each camera on its own).
+    time_offset: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.replace("_", "").replace(
@@ -80,6 +85,11 @@ class RigCamera:
         if self.mount not in MOUNTS:
             raise ValueError(f"camera {self.name}: mount must be one of {MOUNTS}, got "
                              f"{self.mount!r}")
+        if self.time_offset is not None and not (
+                isinstance(self.time_offset, (int, float)) and not isinstance(
+                    self.time_offset, bool) and math.isfinite(self.time_offset)):
+            raise ValueError(f"camera {self.name}: time_offset: expected seconds, got "
+                             f"{self.time_offset!r}")
 
 
 @dataclass(eq=False)
@@ -111,6 +121,21 @@ class CameraResult:
     def mode(self) -> str:
         return "eye_in_hand" if self.mount == "hand" else "eye_to_hand"
 
+    def timing(self) -> str:
+        """How its images were placed in time (image folders paired by time), else ""."""
+        info = self.streams.inputs.get("images", {}) if self.streams is not None else {}
+        if info.get("paired_by") != "time" or "bag" in self.streams.inputs:
+            return ""
+        if self.alone is None and self.verdict.status != "FAIL":
+            return "stamped images: one fixed view of the board, no robot pose paired with them"
+        text = "paired in time"
+        a = self.alone.aligned if self.alone is not None else None
+        if a is not None:
+            text += (f": clock offset {a.time_offset:+.4f} s (camera stamp − robot time; "
+                     f"{self.alone.time_offset_mode}), {len(a)} of {self.detected} detected "
+                     "images within the robot's samples")
+        return text
+
     def sigma(self) -> tuple[np.ndarray, np.ndarray] | None:
         if self.covariance is None:
             return None
@@ -138,6 +163,9 @@ class RigResult:
         for name, c in self.cameras.items():
             out.append(f"camera {name} ({c.mount}, {c.key}): {c.verdict.line()}; board found in "
                        f"{c.detected} of {c.images} images")
+            timing = c.timing()
+            if timing:
+                out.append(f"  {timing}")
             out += [f"  {r.level}: {r.message}" for r in c.verdict.reasons]
             if c.X is not None and c.covariance is not None:
                 sr, st = c.sigma()
@@ -159,6 +187,8 @@ class RigResult:
         def cam(c: CameraResult):
             d = {"mount": c.mount, "mode": c.mode, "verdict": c.verdict.to_dict(),
                  "images": c.images, "detected": c.detected, "agreement": c.agreement}
+            if c.streams is not None and "pairing" in c.streams.inputs.get("images", {}):
+                d["pairing"] = c.streams.inputs["images"]["pairing"]
             if c.X is not None and c.covariance is not None:
                 K, dist = intrinsics_matrix(c.intrinsics)
                 sr, st = c.sigma()
@@ -281,9 +311,11 @@ def _moved_checks(results, moving, board_mount) -> None:
                 moving.remove(c)
 
 
-def _settings(options, streams, mode):
+def _settings(options, streams, mode, time_offset=None):
     s = options.stream_settings(streams, True)
     s["mode"] = mode
+    if time_offset is not None:
+        s["time_offset"] = float(time_offset)
     return s
 
 
@@ -293,23 +325,45 @@ def _start_fixed(X_board, X_CT):
     return X_board @ inverse(ref)
 
 
+def _image_times(c, board_mount):
+    """Robot-clock times (s) of the images in camera ``c``'s block, None when paired by index."""
+    if c.mount == board_mount:
+        t = c.streams.camera.timestamps
+        return None if t is None else np.asarray(t, float)
+    a = c.alone.aligned
+    return None if a.camera_times is None else np.asarray(a.camera_times, float) - a.time_offset
+
+
+def _instants(cams, board_mount):
+    """The instant of each camera's images, shared by the images taken together (the
+    jackknife leaves one instant out at a time): image k of every camera when paired by index;
+    in time, bins one camera period wide (the shortest median period of the cameras) on the
+    robot's clock — cameras at different rates have no common image index."""
+    times = [_image_times(c, board_mount) for c in cams]
+    if any(t is None for t in times):
+        return [np.asarray(c.streams.camera.lines if c.mount == board_mount
+                           else c.alone.aligned.camera_lines, int) - 1 for c in cams]
+    periods = [float(np.median(np.diff(t))) for t in times if len(t) > 1]
+    width = min(periods) if periods else 1.0
+    t0 = min(float(t.min()) for t in times if len(t))
+    return [np.floor((t - t0) / width).astype(int) for t in times]
+
+
 def _blocks(cams, board_mount):
     """RigBlocks of the cameras (list of CameraResult with streams), camera index = position: a
     moving camera's corners with the robot-side pose its own calibration paired with each image
-    (``corners.corner_data``: by index for image folders, in time for bags), a fixed view's with
-    X_R = I."""
+    (``corners.corner_data``: by index for image folders, in time for bags and stamped
+    folders), a fixed view's with X_R = I; instants by ``_instants``."""
     from .corners import corner_data
     blocks = []
-    for i, c in enumerate(cams):
+    for i, (c, instants) in enumerate(zip(cams, _instants(cams, board_mount))):
         s = c.streams
         if c.mount == board_mount:
             data = CornerData.from_lists(np.repeat(np.eye(4)[None], len(s.detections), axis=0),
                                          [d.object_points for d in s.detections],
                                          [d.image_points for d in s.detections])
-            instants = np.asarray(s.camera.lines, int) - 1
         else:
             data, _ = corner_data(c.alone, s.detections)
-            instants = np.asarray(c.alone.aligned.camera_lines, int) - 1
         blocks.append(RigBlock(i, 0, data, instants, pose_error_frame(c.mount, board_mount),
                                c.mount == board_mount))
     return blocks
@@ -327,16 +381,19 @@ def _joint(cams, board_mount, X_board0, factors):
 
 
 def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=None,
-                  robot_frames: str = "base_link:tool0") -> RigResult:
+                  robot_frames: str = "base_link:tool0", pairing: str = "auto") -> RigResult:
     """Calibrates the rig (module docstring).
 
     Args:
         cameras: ``RigCamera`` list (distinct names).
-        robot: the robot pose file (X_BE), one pose per image index (None when every camera
-            reads a bag: the robot's poses are its tf, ``robot_frames`` BASE:EE).
+        robot: the robot pose file (X_BE), one pose per image index, or timestamped poses at
+            any rate for images paired in time (None when every camera reads a bag: the robot's
+            poses are its tf, ``robot_frames`` BASE:EE).
         target: the board spec (e.g. ``charuco:7x5:0.04:0.03:DICT_5X5_100``).
         board_mount: "cell" (the board fixed in the cell: X_BT) or "hand" (on the flange: X_ET).
         options: ``api.CalibrationOptions`` (its mode is ignored: each camera's mount decides).
+        pairing: image folders: "auto", "index" or "time" (``inputs.choose_pairing``, per
+            camera; "time" refuses a folder without stamps, naming it).
     """
     from .api import CalibrationOptions
     from .corners import calibrate_images
@@ -372,7 +429,8 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                                       cam.intrinsics)
             else:
                 s = image_streams([str(cam.images)] if isinstance(cam.images, (str, Path))
-                                  else cam.images, robot, target, cam.intrinsics)
+                                  else cam.images, robot, target, cam.intrinsics,
+                                  pairing=pairing)
         except ValueError as e:
             # Only a camera whose images do not show the board is a verdict; anything else is
             # bad input (unreadable images, counts that do not pair, wrong-size intrinsics,
@@ -403,7 +461,8 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         else:
             mode = "eye_in_hand" if cam.mount == "hand" else "eye_to_hand"
             try:
-                alone = calibrate_images(s, _settings(options, s, mode), options.refine_intrinsics)
+                alone = calibrate_images(s, _settings(options, s, mode, cam.time_offset),
+                                         options.refine_intrinsics)
             except ValueError as e:
                 res.verdict = _fail("alone", f"camera {cam.name} alone: {e}")
                 continue

@@ -19,6 +19,13 @@ model), ``moved`` {name: (index, X_delta)}: from image ``index`` on, the camera'
 X · X_delta (a camera knocked during the recording), ``blank`` names a camera whose images do
 not show the board (covered lens).
 
+A recording as real multi-camera cells make them (``generate_stamped_rig``): the arm moving
+without stopping through the poses, a robot pose stream at ``robot_rate`` Hz with real time
+stamps, each camera free-running at its own period with frames dropped and its own clock offset,
+its images named by their stamps (``<seconds>.<fraction>``, ``frame_<nanoseconds>``,
+``<seconds>_<nanoseconds>``, or ``img_k`` with a ``timestamps.txt``: ``recorded.image_stamps``).
+``generate_example_rig``'s output (index-paired) is unchanged.
+
 Drake and OpenCV are imported inside the functions (``handeye_drake.recorded`` stays Drake-free).
 """
 
@@ -86,7 +93,8 @@ def _distort(image, K, dist):
 def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
             supersample=SUPERSAMPLE, X_ET=None):
     """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras); the
-    board at X_BT in the cell, or at ``X_ET`` on the flange when given."""
+    board at X_BT in the cell, or at ``X_ET`` on the flange when given. ``qs``: the joint
+    positions of every camera's images, or {name: its own}."""
     import cv2
     from pydrake.systems.framework import DiagramBuilder
 
@@ -117,6 +125,12 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
     context = diagram.CreateDefaultContext()
     plant_context = arm.plant.GetMyMutableContextFromRoot(context)
     out = {name: [] for name in cameras}
+    if isinstance(qs, dict):
+        for name, cam in handles.items():
+            for q in qs[name]:
+                arm.plant.SetPositions(plant_context, arm.model_instance, q)
+                out[name].append(cv2.cvtColor(cam.EvalColorImage(context), cv2.COLOR_RGBA2GRAY))
+        return out
     for q in qs:
         arm.plant.SetPositions(plant_context, arm.model_instance, q)
         for name, cam in handles.items():
@@ -215,6 +229,150 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     return truth
 
 
+#: File-name styles of ``generate_stamped_rig`` (``recorded.image_stamps``' conventions).
+STAMP_STYLES = ("seconds", "file", "nanoseconds", "sec_nsec")
+
+
+def _stamp_name(style: str, stamp: float, k: int) -> str:
+    ns = int(round(stamp * 1e9))
+    sec, nsec = divmod(ns, 1_000_000_000)
+    if style == "seconds":
+        return f"{sec}.{nsec // 1000:06d}.png"            # TUM RGB-D: microseconds
+    if style == "nanoseconds":
+        return f"frame_{ns}.png"
+    if style == "sec_nsec":
+        return f"{sec}_{nsec:09d}.png"
+    return f"img_{k:03d}.png"
+
+
+def _smooth_joint_path(q_knots, t_knots):
+    """q(t): from knot to knot in joint space with a smoothstep profile (3s² − 2s³): the arm
+    slows through each pose, never stops, its speed continuous (no corner for the interpolation
+    of the robot's samples to cut)."""
+    q_knots = np.asarray(q_knots, float)
+
+    def q_at(t):
+        k = int(np.clip(np.searchsorted(t_knots, t, side="right") - 1, 0, len(t_knots) - 2))
+        s = float(np.clip((t - t_knots[k]) / (t_knots[k + 1] - t_knots[k]), 0.0, 1.0))
+        s = s * s * (3.0 - 2.0 * s)
+        return q_knots[k] + s * (q_knots[k + 1] - q_knots[k])
+    return q_at
+
+
+def generate_stamped_rig(out_dir, seed: int = 0, num_poses: int = 8, cameras: dict | None = None,
+                         periods: dict | None = None, offsets: dict | None = None,
+                         drop: float = 0.15, styles: dict | None = None,
+                         robot_rate: float = 100.0, segment: float = 1.5,
+                         start: float = 1764800000.0, robot_error=(0.0, 0.0),
+                         supersample: int = SUPERSAMPLE, pixels_per_metre: float = 2500.0) -> dict:
+    """A rig recorded the way real cells record (module docstring) into ``out_dir``; returns the
+    truth (also ``truth.json``).
+
+    The arm passes through ``num_poses`` poses of ``sample_robot_poses`` one every ``segment`` s
+    from ``start`` (epoch seconds), along a smooth joint path (``_smooth_joint_path``).
+    ``robot_poses.tum``: the flange pose X_BE at ``robot_rate`` Hz stamped on the robot's clock
+    (the truth's time), with ``robot_error`` as ``generate_example_rig`` (a function of the joint
+    angles). Camera NAME (``cameras`` as ``generate_example_rig``'s, default ``DEFAULT_RIG``)
+    takes an image every ``periods[NAME]`` s (default 0.35 s, 0.5 s, 0.6 s, … by camera)
+    from a phase of its own, drops each with probability ``drop``, and stamps it on its clock:
+    true time + ``offsets[NAME]`` (default +0.03 s, −0.02 s, +0.045 s, … — the ``time_offset``
+    convention, camera stamp − robot time). ``styles[NAME]`` in ``STAMP_STYLES`` names the files
+    (default: one each, in order); "file" writes ``img_k.png`` and a ``timestamps.txt``."""
+    import cv2
+    from ..estimation.se3 import rotation_exp
+    from ..systems.arm import make_control_plant
+    from ..vision.camera_model import CameraIntrinsics
+    from ..vision.intrinsics import write_intrinsics_yaml
+    from ..vision.targets import format_target, parse_target
+
+    cameras = dict(cameras or DEFAULT_RIG)
+    names = list(cameras)
+    periods = {n: (periods or {}).get(n, (0.35, 0.5, 0.6, 0.7, 0.8)[i % 5])
+               for i, n in enumerate(names)}
+    offsets = {n: (offsets or {}).get(n, (0.03, -0.02, 0.045, -0.035, 0.01)[i % 5])
+               for i, n in enumerate(names)}
+    styles = {n: (styles or {}).get(n, STAMP_STYLES[i % len(STAMP_STYLES)])
+              for i, n in enumerate(names)}
+    for n in names:
+        if styles[n] not in STAMP_STYLES:
+            raise ValueError(f"styles[{n!r}]: expected one of {STAMP_STYLES}, got {styles[n]!r}")
+        if not periods[n] > 0:
+            raise ValueError(f"periods[{n!r}]: expected seconds > 0, got {periods[n]!r}")
+    if not (0.0 <= drop < 1.0 and robot_rate > 0 and segment > 0):
+        raise ValueError("drop in [0, 1), robot_rate and segment > 0 expected")
+    q_knots, _ = sample_robot_poses(seed, num_poses)
+    t_knots = start + segment * np.arange(num_poses)
+    q_at = _smooth_joint_path(q_knots, t_knots)
+    plant = make_control_plant()
+    context = plant.CreateDefaultContext()
+    frame_E = plant.GetFrameByName("tool0")
+
+    def fk(q):
+        plant.SetPositions(context, q)
+        return plant.CalcRelativeTransform(context, plant.world_frame(), frame_E).GetAsMatrix4()
+
+    err_rng = np.random.default_rng(seed + 7919)
+    A, B = err_rng.normal(size=(2, 6, 6)) / math.sqrt(6.0)
+    scale = np.repeat([math.radians(robot_error[0]), robot_error[1]], 3)
+
+    def recorded(q):
+        X = fk(q)
+        if any(robot_error):
+            d = scale * (A @ np.sin(q) + B @ np.cos(q))
+            X = X @ make_transform(rotation_exp(d[:3]), d[3:])
+        return X
+
+    n_robot = int(math.floor((t_knots[-1] - t_knots[0]) * robot_rate + 1e-9)) + 1
+    t_robot = t_knots[0] + np.arange(n_robot) / robot_rate
+    lines = ["# handeye_drake stamped example rig: X_BE (flange in robot base), metres, at "
+             f"{robot_rate:g} Hz on the robot's clock", "# timestamp tx ty tz qx qy qz qw"]
+    lines += [_tum_line(float(t), recorded(q_at(t))) for t in t_robot]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "robot_poses.tum").write_text("\n".join(lines) + "\n")
+    rng = np.random.default_rng(seed + 104729)
+    times = {}
+    for n in names:
+        phase = rng.uniform(0.0, periods[n])
+        t = np.arange(t_knots[0] + phase, t_knots[-1], periods[n])
+        times[n] = t[rng.uniform(size=len(t)) >= drop]
+    X_BT = _target_pose(parse_target(TARGET_SPEC))
+    target = parse_target(TARGET_SPEC)
+    fx, fy, cx, cy, width, height = INTRINSICS
+    pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
+                               distortion=(0.0,) * 5)
+    images = _render(cameras, {n: [q_at(t) for t in times[n]] for n in names}, pinhole, X_BT,
+                     target, pixels_per_metre, supersample)
+    truth_cams = {}
+    for n, (mount, X) in cameras.items():
+        folder = out / n
+        folder.mkdir(exist_ok=True)
+        stamps = times[n] + offsets[n]
+        files = [_stamp_name(styles[n], float(s), k) for k, s in enumerate(stamps)]
+        for f, img in zip(files, images[n]):
+            cv2.imwrite(str(folder / f), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        if styles[n] == "file":
+            (folder / "timestamps.txt").write_text(
+                "# image, stamp on the camera's clock (s)\n"
+                + "".join(f"{f} {s:.9f}\n" for f, s in zip(files, stamps)))
+        write_intrinsics_yaml(pinhole, folder / "intrinsics.yaml")
+        truth_cams[n] = {"mount": mount, "mode": "eye_in_hand" if mount == "hand"
+                         else "eye_to_hand", ("X_EC" if mount == "hand" else "X_BC"):
+                         np.asarray(X).tolist(), "period_s": float(periods[n]),
+                         "time_offset_s": float(offsets[n]), "style": styles[n],
+                         "files": files, "true_times": times[n].tolist(),
+                         "X_BE": [fk(q_at(t)).tolist() for t in times[n]]}
+    truth = {"description": "stamped multi-camera rig rendered by "
+             "handeye_drake/recorded/example_rig.py (generate_stamped_rig)",
+             "seed": int(seed), "target": format_target(target), "board_mount": "cell",
+             "X_BT": X_BT.tolist(), "robot_rate_hz": float(robot_rate),
+             "robot_samples": int(n_robot), "knot_times": t_knots.tolist(),
+             "robot_error": list(map(float, robot_error)), "drop": float(drop),
+             "cameras": truth_cams}
+    (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
+    return truth
+
+
 def write_rig_bag(rig_dir, path, storage: str = "mcap", names=None, period: float = 1.2,
                   latency: float = 0.035, tf_rate: float = 50.0) -> dict:
     """A ROS bag of a rendered rig (``generate_example_rig``'s ``rig_dir``): the flange passes
@@ -270,6 +428,17 @@ if __name__ == "__main__":
     parser.add_argument("out_dir")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--num-images", type=int, default=10)
+    parser.add_argument("--stamped", action="store_true",
+                        help="the arm moving through the poses (--num-images of them), a robot "
+                             "stream at 100 Hz, cameras free-running at their own rates with "
+                             "dropped frames and clock offsets, files named by their stamps")
     a = parser.parse_args()
-    t = generate_example_rig(a.out_dir, a.seed, a.num_images)
-    print(f"wrote {len(t['X_BE'])} images per camera ({', '.join(t['cameras'])}) to {a.out_dir}")
+    if a.stamped:
+        t = generate_stamped_rig(a.out_dir, a.seed, a.num_images)
+        print(f"wrote {t['robot_samples']} robot poses and " + ", ".join(
+            f"{len(c['files'])} {n} images ({c['style']}, clock {c['time_offset_s']:+.3f} s)"
+            for n, c in t["cameras"].items()) + f" to {a.out_dir}")
+    else:
+        t = generate_example_rig(a.out_dir, a.seed, a.num_images)
+        print(f"wrote {len(t['X_BE'])} images per camera ({', '.join(t['cameras'])}) to "
+              f"{a.out_dir}")

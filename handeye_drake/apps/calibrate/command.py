@@ -103,8 +103,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     src.add_argument("--images", nargs="+", metavar="PATH",
                      help="images of the target: files, directories or globs, paired with the "
                           "poses of --robot in order (one each): each argument's files in "
-                          "natural file-name order, the arguments in the order given")
+                          "natural file-name order, the arguments in the order given; or in "
+                          "time when every image has a stamp (--pairing)")
     fmt = p.add_argument_group("reading")
+    fmt.add_argument("--pairing", choices=("auto", "index", "time"), default="auto",
+                     help="how images (--images, rig folders) pair with the robot poses: time "
+                          "(each image's stamp from its file name or the folder's "
+                          "timestamps.txt / times.csv, the robot pose interpolated there, the "
+                          "clock offset estimated), index (image k with pose k), or auto "
+                          "(default: time when every image has a stamp and the robot's stamps "
+                          "are times; docs/multi-camera.md)")
     fmt.add_argument("--format", type=_format_arg, default=None, metavar="FORMAT",
                      help=f"pose file format: {', '.join(FORMAT_NAMES)} (default: from the "
                           "extension: .tum/.txt, .csv, .yaml/.yml). csv-rotvec: x y z rx ry rz "
@@ -356,7 +364,8 @@ def run_calibrate_command(args) -> int:
         camera_translation_scale=camera_scale, max_translation=args.max_translation,
         time_scale=args.time_scale, robot_quaternion_order=args.robot_quaternion_order,
         camera_quaternion_order=args.camera_quaternion_order,
-        robot_format=args.robot_format, camera_format=args.camera_format, drawings_dir=out)
+        robot_format=args.robot_format, camera_format=args.camera_format, drawings_dir=out,
+        pairing=args.pairing)
     result = solve(streams, options_from_args(args))
     if args.compare is not None:
         from ...calibration.compare import compare
@@ -473,13 +482,16 @@ def _image_table(streams) -> str:
     if streams.inputs["images"].get("symmetry"):
         lines.append(f"  {streams.inputs['images']['symmetry']['note']}")
     from_bag = records[0].message is not None
+    # Image files paired in time: their stamps, not a robot line (the pose is interpolated).
+    stamped = not from_bag and records[0].robot_line is None
     lines.append("  " + ("stamp (s)                         message" if from_bag else
+                         "image                          stamp (s)" if stamped else
                          "image                          robot line")
                  + "  detected  RMS (px)  note")
     for r in records[:TABLE_ROWS]:
         name = f"{r.stamp:.6f}" if from_bag else r.path.rsplit("/", 1)[-1]
         rms = f"{r.reprojection_rms_px:8.3f}" if r.found else "       -"
-        where = r.message if from_bag else r.robot_line
+        where = r.message if from_bag else f"{r.stamp:.6f}" if stamped else r.robot_line
         lines.append(f"  {name:<30} {where:>10}  {'yes' if r.found else 'no':>8}  "
                      f"{rms}  {r.reason}")
     if len(records) > TABLE_ROWS:

@@ -6,7 +6,8 @@
     handeye-drake calibrate --bag PATH --robot-frames base_link:tool0 --target SPEC \\
         --camera wrist:/wrist/image_raw:hand --camera cell:/cell/image_raw:cell
 
-Image k of every camera pairs with robot pose k; from a bag, each camera's images pair with the
+Image k of every camera pairs with robot pose k, or in time when every image has a stamp (file
+names, a stamps file: ``--pairing``, docs/multi-camera.md); from a bag, each camera's images pair with the
 robot's tf in time (its clock offset estimated, as ``--bag --image-topic``). ``--board-mount``
 says where the board is (cell: X_BT, default; hand: X_ET). A rig YAML holds the same (paths
 relative to the file)::
@@ -16,9 +17,9 @@ relative to the file)::
     board: cell
     cameras:
       wrist: {images: wrist, mount: hand, intrinsics: wrist/intrinsics.yaml}
-      cell: {images: cell, mount: cell, intrinsics: cell/intrinsics.yaml}
+      cell: {images: cell, mount: cell, intrinsics: cell/intrinsics.yaml, time_offset: 0.03}
 
-Writes ``calibration.json`` (the rig: verdict, board, camera-to-camera transforms, every
+(``time_offset``, images paired in time: that camera's clock offset in s, else estimated.) Writes ``calibration.json`` (the rig: verdict, board, camera-to-camera transforms, every
 camera), ``report.txt``, and per camera ``NAME/calibration.json`` and with ``--export`` its frame
 (``NAME/handeye.urdf``, … : one frame per camera, ``NAME_optical_frame``).
 """
@@ -34,7 +35,7 @@ from ...calibration.rig import RigCamera, calibrate_rig
 #: Largest rig YAML read (bytes): a rig of many cameras is a few kB.
 _MAX_RIG_BYTES = 1_000_000
 _RIG_KEYS = ("robot", "target", "board", "cameras")
-_CAMERA_KEYS = ("images", "mount", "intrinsics")
+_CAMERA_KEYS = ("images", "mount", "intrinsics", "time_offset")
 
 
 def _is(path, test: str = "exists") -> bool:
@@ -223,7 +224,8 @@ def read_rig_yaml(path) -> dict:
         else:
             intr_arg = rel(intr)
         try:
-            cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg))
+            cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg,
+                                  time_offset=c.get("time_offset")))
         except ValueError as e:
             raise ValueError(f"--rig {path}: {e}") from None
         check_rig_camera(cams[-1], f"--rig {path}: camera {name}")
@@ -361,7 +363,8 @@ def run_rig_command(args, rig_cameras, options) -> int:
         f"{c.name}/{f}" for c in cams for f in ["calibration.json"] + files])
     try:
         result = calibrate_rig(cams, robot, target, board, options,
-                               robot_frames=args.robot_frames)
+                               robot_frames=args.robot_frames,
+                               pairing=getattr(args, "pairing", "auto"))
     except ValueError as e:
         raise ValueError(_named(e, where)) from None
     base, ee = (args.robot_frames.split(":") + [""])[:2] if args.bag else (None, None)
