@@ -808,9 +808,10 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
     rig = RigResult(results, boards[0].mount, Verdict("OK"), boards=board_results)
     if not moving_alone:
         rig.verdict = _fail("no_moving_camera",
-                            "no camera that moves relative to a board calibrated: the board"
-                            f"{'' if single else 's'}' pose{'' if single else 's'} "
-                            f"{'is' if single else 'are'} not determined" + "".join(
+                            ("no camera that moves relative to the board calibrated: the "
+                             "board's pose is not determined" if single else
+                             "no camera that moves relative to a board calibrated: the boards' "
+                             "poses are not determined") + "".join(
                                 f"; {r.message}" for c in results.values()
                                 for r in c.verdict.reasons))
         for b in board_results.values():
@@ -953,9 +954,10 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                     if key[0] == "board":
                         return f"board {bs[key[1]].name}"
                     return f"{cams[key[1]].name}→{cams[key[2]].name}"
+                widened = [f"{what(k)} ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0]
                 rig.notes.append("σ widened by a delete-one-instant jackknife: " + ", ".join(
-                    f"{what(k)} ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0) or
-                    "σ checked by a delete-one-instant jackknife: not widened")
+                    widened) if widened else "σ checked by a delete-one-instant jackknife: not "
+                    "widened")
             for i, c in enumerate(cams):
                 c.X = fit.X_cameras[i]
                 c.variance_factor = jack.get(("camera", i), 1.0)
