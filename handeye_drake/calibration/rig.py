@@ -683,7 +683,8 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
         res.intrinsics = intrinsics_vector(s.intrinsics.K, s.intrinsics.distortion)
         by_camera[cam.name] = blks
     # 2. alone, and each fixed view steady
-    primary, placed, fixed, moving_alone, failed_main = {}, [], [], [], {}
+    primary, placed, fixed, moving_alone, failed_main, suspect = {}, [], [], [], {}, []
+    jumped = {}                        # camera name → its one view, which jumped
     for name, blks in by_camera.items():
         res = results[name]
         steady, jumps = [], []
@@ -721,6 +722,8 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
             k, why = jumps[0]
             res.verdict = (Verdict("FAIL", [why]) if why.code != "intrinsics_needed"
                            else _fail(why.code, why.message))
+            if why.code == "camera_moved":
+                jumped[name] = k
             continue
         by = (passed or steady)[0].board.name if (passed or steady) else None
         for k, why in jumps:
@@ -777,11 +780,7 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                         k.placed = True
                         placed.append(k)
                     continue
-                _add_fail(board_results[k.board.name], "board_alone", (
-                    f"board {k.board.name}: camera {name}'s images of it do not calibrate ("
-                    + "; ".join(r.message for r in alone.verdict.reasons if r.level == "FAIL")
-                    + f") while its images of board {main.board.name} do: did board "
-                    f"{k.board.name} move during the recording, or is its spec wrong?"))
+                suspect.append(k)
         elif failed:
             res.verdict = Verdict("WARN", list(res.verdict.reasons) + [Reason(
                 "WARN", "alone", f"camera {name}: its images of board{'s' * (len(failed) > 1)} "
@@ -802,6 +801,32 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                 _add_fail(board_results[k.board.name], why.code, why.message)
                 continue
         keep.append(k)
+    for k in suspect:
+        # A camera's images of one board fail alone while its images of another pass: the
+        # board moved (one clean jump, named), else its images of that board are refused.
+        if k.cam.name not in primary:
+            continue
+        main = primary[k.cam.name]
+        why = _board_moved(k, main.alone.X_hand, main.board.name)
+        if why is None:
+            why = Reason("FAIL", "board_alone", (
+                f"board {k.board.name}: camera {k.cam.name}'s images of it do not calibrate ("
+                + "; ".join(r.message for r in k.tried.verdict.reasons if r.level == "FAIL")
+                + f") while its images of board {main.board.name} do: did board "
+                f"{k.board.name} move during the recording, or is its spec wrong?"))
+        _add_fail(board_results[k.board.name], why.code, why.message)
+    for name, k in jumped.items():
+        # A fixed camera whose one view jumped when another camera saw its board move: the
+        # board's move explains it (the camera may well be where it was).
+        b = board_results[k.board.name]
+        if b.verdict.reasons and b.verdict.reasons[0].code == "board_moved":
+            r = results[name]
+            r.verdict = _fail("board_moved", r.verdict.reasons[0].message.replace(
+                f"camera {name} moved during the recording: its view of the board jumps",
+                f"camera {name}'s view of board {b.name} jumps").replace(
+                " — record again", f": board {b.name} moved (another camera sees it move), "
+                f"which explains it; with no steady view of a board, camera {name}'s pose is "
+                "not determined — record again"))
     moving_alone = [k for k in keep if not k.placed]
     placed = [k for k in keep if k.placed]
     fixed = [k for k in fixed if results[k.cam.name].verdict.status != "FAIL"]

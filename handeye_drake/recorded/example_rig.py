@@ -156,7 +156,8 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
                          blank=(), pixels_per_metre: float = 2500.0,
                          robot_error=(0.0, 0.0), supersample: int = SUPERSAMPLE,
                          board_mount: str = "cell", boards: dict | None = None,
-                         board_images: dict | None = None) -> dict:
+                         board_images: dict | None = None,
+                         moved_board: tuple | None = None) -> dict:
     """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
     ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``).
     ``robot_error`` (deg, m): per-axis RMS of the error of the recorded flange poses, a smooth
@@ -167,7 +168,9 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     (default cameras ``HAND_BOARD_RIG``), not on the table. ``boards`` {name: (spec, mount
     "cell" | "hand", X_BT | X_ET)}: several boards instead (e.g. ``two_boards()``; the first is
     the one the robot poses aim at); ``board_images`` {name: n}: n more robot poses (after the
-    ``num_images``) aimed at that cell board the way the first ones aim at the first board."""
+    ``num_images``) aimed at that cell board the way the first ones aim at the first board;
+    ``moved_board`` (name, index, X_delta): from image ``index`` on, that board is at
+    X · X_delta (a board pushed during the recording; not with ``moved``)."""
     import cv2
     from ..vision.camera_model import CameraIntrinsics
     from ..vision.intrinsics import write_intrinsics_yaml
@@ -211,6 +214,16 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
                                distortion=(0.0,) * 5)
     images = _render(cameras, qs, pinhole, board_list, pixels_per_metre, supersample)
+    if moved_board is not None:
+        bname, k0, delta = moved_board
+        if moved or bname not in boards:
+            raise ValueError(f"moved_board: {bname!r} is not a board of the rig, or given with "
+                             "moved")
+        after = _render(cameras, qs[int(k0):], pinhole,
+                        [(n, t, m, X @ np.asarray(delta, float) if n == bname else X)
+                         for n, t, m, X in board_list], pixels_per_metre, supersample)
+        for n in cameras:
+            images[n][int(k0):] = after[n]
     if moved:
         first = min(int(k) for k, _ in moved.values())
         after = _render({n: (cameras[n][0], cameras[n][1] @ np.asarray(d, float))
@@ -258,7 +271,10 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
              "seed": int(seed), "target": format_target(target), "board_mount": mount0,
              ("X_BT" if mount0 == "cell" else "X_ET"): X0.tolist(),
              "boards": {n: {"target": format_target(t), "mount": m,
-                            ("X_BT" if m == "cell" else "X_ET"): X.tolist()}
+                            ("X_BT" if m == "cell" else "X_ET"): X.tolist(),
+                            "moved": None if moved_board is None or moved_board[0] != n else
+                            {"from_index": int(moved_board[1]),
+                             "X_delta": np.asarray(moved_board[2]).tolist()}}
                         for n, t, m, X in board_list},
              "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": width,
                             "height": height},
