@@ -10,6 +10,10 @@ from 0.38–0.55 m):
 - ``cell``: fixed in the cell at ``TRUE_X_BC_CELL``, 0.9 m from the board, looking at it
   obliquely (a cell camera watching the same board: X_BC; the arm may hide part of the board).
 
+Several boards (``boards``, e.g. ``two_boards()``: a second ChArUco board of another dictionary
+0.5 m beside the first, watched by the cell camera ``side`` of ``TWO_BOARD_RIG``; with
+``board_images`` the hand cameras turn to it for a few more robot poses).
+
 Files written to ``out_dir``: ``robot_poses.tum`` (X_BE, one line per image index, shared by every
 camera), and per camera ``NAME/img_000.png`` … (grey PNG; the same index is the same instant) and
 ``NAME/intrinsics.yaml``; ``truth.json`` (X_BT, per camera its mount, X_EC or X_BC, intrinsics).
@@ -340,6 +344,11 @@ if __name__ == "__main__":
     parser.add_argument("out_dir")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--num-images", type=int, default=10)
+    parser.add_argument("--two-boards", action="store_true",
+                        help="two boards on the table (table, side), TWO_BOARD_RIG's cameras, "
+                             "4 more robot poses aimed at the side board")
     a = parser.parse_args()
-    t = generate_example_rig(a.out_dir, a.seed, a.num_images)
+    t = generate_example_rig(a.out_dir, a.seed, a.num_images, **(
+        {"cameras": TWO_BOARD_RIG, "boards": two_boards(), "board_images": {"side": 4}}
+        if a.two_boards else {}))
     print(f"wrote {len(t['X_BE'])} images per camera ({', '.join(t['cameras'])}) to {a.out_dir}")
