@@ -57,9 +57,14 @@ def main():
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p.add_argument("--images", type=int, default=10)
     p.add_argument("--robot-error", default="0.02,0.2", help="deg,mm per axis")
+    p.add_argument("--robot-accuracy", default="0.03,0.3",
+                   help="deg,mm: the robot's accuracy the calibration is told (the command "
+                        "line's --robot-accuracy, default its default; 0,0 leaves it out)")
     a = p.parse_args()
     deg, mm = (float(v) for v in a.robot_error.split(","))
-    options = CalibrationOptions(refine_intrinsics="none")
+    acc = [float(v) for v in a.robot_accuracy.split(",")]
+    options = CalibrationOptions(refine_intrinsics="none", robot_accuracy_deg=acc[0],
+                                 robot_accuracy_mm=acc[1])
     rows = {"one board": {}, "two boards": {}}
     for seed in a.seeds:
         tmp = Path(tempfile.mkdtemp(prefix="multi_board_"))
@@ -84,7 +89,8 @@ def main():
                           f"NEES {nees:.1f}")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-    print(f"\nmean over seeds {a.seeds} (robot error {deg}° / {mm} mm per axis):")
+    print(f"\nmean over seeds {a.seeds} (robot error {deg}° / {mm} mm per axis"
+          + f"; robot accuracy told {acc[0]}° / {acc[1]} mm):")
     print("| answer | one board | two boards | ratio one / two (rotation, translation) |")
     print("|---|---|---|---|")
     for k in rows["two boards"]:

@@ -575,6 +575,55 @@ def _joint(blocks, X_boards0: dict, factors: dict, covariance: bool = True):
     return fit, cams, boards
 
 
+def _board_pose_error_term(fit, b: int, robot_accuracy=None) -> np.ndarray:
+    """6×6 covariance of board ``b``'s pose from one image's pose error: a block's fitted
+    per-image level σ_e (the robot's error, as it moves the camera or the board) carried to the
+    board pose that image implies (X_b = X_R · X_c · Exp(e) · X_CT for a camera on the robot,
+    X_b · Exp(e) for a board on it), averaged over the block's images — not divided by their
+    number: a robot's pose error repeats with its joint angles, so the errors of a recording's
+    images are alike and do not average out (the fit's own covariance treats them as
+    independent). The smallest such term over the blocks that move relative to the board (the
+    best-placed camera's); zeros when none does. ``robot_accuracy`` (deg, m): instead the
+    robot's absolute accuracy, a flange error e (per axis) at each image, X_b = X_BE · Exp(e) ·
+    X_EC · X_CT (hand camera) or Exp(e) · X_ET (board on the hand)."""
+    from ..estimation.se3 import make_transform, rotation_exp
+    h = 1e-7
+    best = None
+    X_b = fit.X_boards[b]
+    for rb, res in zip(fit.rig_blocks, fit.blocks):
+        if rb.board != b or rb.fixed_view:
+            continue
+        X_c = fit.X_cameras[rb.camera]
+        if robot_accuracy is None:
+            S = np.diag(np.asarray(res.pose_sigma, float) ** 2)
+            frame = rb.frame
+        else:
+            deg, m = (float(v) for v in robot_accuracy)
+            S = np.diag(np.repeat([math.radians(deg) ** 2, m ** 2], 3))
+            frame = "flange" if rb.frame == "camera" else "target"
+        Cs = []
+        for X_R in np.asarray(rb.data.X_R)[np.asarray(res.image_used, bool)]:
+            X_CT = inverse(X_c) @ inverse(X_R) @ X_b
+            J = np.zeros((6, 6))
+            for i in range(6):
+                d = np.zeros(6)
+                d[i] = h
+                imp = []
+                for sgn in (1.0, -1.0):
+                    E = make_transform(rotation_exp(sgn * d[:3]), sgn * d[3:])
+                    imp.append(X_R @ X_c @ E @ X_CT if frame == "camera" else
+                               X_R @ E @ X_c @ X_CT if frame == "flange" else
+                               E @ X_b if robot_accuracy is not None else X_b @ E)
+                J[:, i] = (tangent(imp[0], X_b) - tangent(imp[1], X_b)) / (2 * h)
+            Cs.append(J @ S @ J.T)
+        if not Cs:
+            continue
+        C = np.mean(Cs, axis=0)
+        if best is None or np.trace(C[3:, 3:]) < np.trace(best[3:, 3:]):
+            best = C
+    return np.zeros((6, 6)) if best is None else 0.5 * (best + best.T)
+
+
 def _boards_of(target, board_mount, boards) -> list:
     if boards is None:
         if isinstance(target, RigBoard):
@@ -1005,7 +1054,13 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                 br = board_results[b.name]
                 br.variance_factor = jack.get(("board", i), 1.0)
                 br.X = fit.X_boards[i]
-                br.covariance = fit.board_covariance(i) * br.variance_factor
+                br.covariance = fit.board_covariance(i) * br.variance_factor + \
+                    _board_pose_error_term(fit, i)
+                if options.robot_accuracy is not None:
+                    # As for the cameras: the robot's absolute accuracy moves the board's pose
+                    # as the images place it (not averaged over them: it repeats).
+                    br.covariance = br.covariance + _board_pose_error_term(
+                        fit, i, options.robot_accuracy)
             for i, j in pairs:
                 X, C = fit.relative(i, j)
                 rig.relative[(cams[i].name, cams[j].name)] = (X, C * jack.get(("pair", i, j),
