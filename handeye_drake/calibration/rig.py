@@ -525,12 +525,6 @@ def _board_moved(k: _Block, X_c, by: str) -> Reason | None:
         f"images of board {by}) jumps"))
 
 
-def _start_fixed(X_board, X_CT):
-    """X_c of a fixed view from the board pose and its median view: X_c = X_b · X_CT⁻¹."""
-    ref = X_CT[len(X_CT) // 2]
-    return X_board @ inverse(ref)
-
-
 def _rig_block(k: _Block, ci: int, bi: int) -> RigBlock:
     """The ``RigBlock`` of a block: a moving block's corners with the robot-side pose its own
     calibration paired with each image (``corners.corner_data``: by index for image folders, in
