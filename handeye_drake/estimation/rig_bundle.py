@@ -415,9 +415,9 @@ def jackknife_factors(blocks, fit: RigFit, pairs=()) -> dict:
     images (every camera's) left out in turn, the rig refitted from ``fit`` with its noise
     levels held; the spread of the answers (jackknife covariance C_J) against the fit's own
     covariance C gives trace(C⁻¹ C_J) / 6 per camera and per pair (a, b) of ``pairs`` (their
-    X_a⁻¹ X_b) — what the corners' noise model misses (a detector's bias shared by an image's
-    corners, …) widens the σ, never narrows them. Returns {("camera", c) | ("pair", a, b):
-    factor}, {} when fewer than 5 instants can be left out."""
+    X_a⁻¹ X_b) and per board — what the corners' noise model misses (a detector's bias shared
+    by an image's corners, …) widens the σ, never narrows them. Returns {("camera", c) |
+    ("board", b) | ("pair", a, b): factor}, {} when fewer than 5 instants can be left out."""
     instants = np.unique(np.concatenate([b.instants for b in blocks]))
     answers = []
     for g in instants:
@@ -454,6 +454,9 @@ def jackknife_factors(blocks, fit: RigFit, pairs=()) -> dict:
     for c in range(len(fit.X_cameras)):
         out[("camera", c)] = factor([tangent(f.X_cameras[c], fit.X_cameras[c]) for f in answers],
                                     fit.camera_covariance(c))
+    for b in range(len(fit.X_boards)):
+        out[("board", b)] = factor([tangent(f.X_boards[b], fit.X_boards[b]) for f in answers],
+                                   fit.board_covariance(b))
     for a, b in pairs:
         X, C = fit.relative(a, b)
         out[("pair", a, b)] = factor([tangent(inverse(f.X_cameras[a]) @ f.X_cameras[b], X)

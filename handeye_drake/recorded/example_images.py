@@ -132,11 +132,13 @@ def example_intrinsics():
                             distortion=(0.0,) * 5)
 
 
-def sample_robot_poses(seed: int = 0, num_images: int = 14) -> tuple[np.ndarray, list]:
+def sample_robot_poses(seed: int = 0, num_images: int = 14, target_spec: str | None = None,
+                       X_BT=None) -> tuple[np.ndarray, list]:
     """The joint positions (num_images × 6, rad) and flange poses X_BE (forward kinematics, 4×4)
     of the image set: random camera poses (module docstring) kept if the UR5e reaches them, every
     board corner projects ≥ ``IMAGE_MARGIN_PX`` inside the image and the camera turned 15–40°
-    from the previous pose. Deterministic; the first k poses do not depend on num_images ≥ k."""
+    from the previous pose. Deterministic; the first k poses do not depend on num_images ≥ k.
+    ``target_spec``, ``X_BT``: aim at another board on the table (default the example's)."""
     from ..systems.arm import make_control_plant
     from ..vision.targets import object_points, parse_target, pattern_extent
 
@@ -144,8 +146,8 @@ def sample_robot_poses(seed: int = 0, num_images: int = 14) -> tuple[np.ndarray,
             or num_images < 1:
         raise ValueError(f"num_images: expected an integer ≥ 1, got {num_images!r}")
     rng = np.random.default_rng(seed)
-    target = parse_target(TARGET_SPEC)
-    X_BT = _target_pose(target)
+    target = parse_target(TARGET_SPEC if target_spec is None else target_spec)
+    X_BT = _target_pose(target) if X_BT is None else np.asarray(X_BT, float)
     x0, y0, x1, y1 = pattern_extent(target)
     centre_T = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0])
     # The board's outer corners must be in view too, not only the inner corners.

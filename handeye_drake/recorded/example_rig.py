@@ -10,6 +10,10 @@ from 0.38–0.55 m):
 - ``cell``: fixed in the cell at ``TRUE_X_BC_CELL``, 0.9 m from the board, looking at it
   obliquely (a cell camera watching the same board: X_BC; the arm may hide part of the board).
 
+Several boards (``boards``, e.g. ``two_boards()``: a second ChArUco board of another dictionary
+0.5 m beside the first, watched by the cell camera ``side`` of ``TWO_BOARD_RIG``; with
+``board_images`` the hand cameras turn to it for a few more robot poses).
+
 Files written to ``out_dir``: ``robot_poses.tum`` (X_BE, one line per image index, shared by every
 camera), and per camera ``NAME/img_000.png`` … (grey PNG; the same index is the same instant) and
 ``NAME/intrinsics.yaml``; ``truth.json`` (X_BT, per camera its mount, X_EC or X_BC, intrinsics).
@@ -61,6 +65,31 @@ def _look_at(p_B, aim_B, up_B=(0.0, 0.0, 1.0)) -> np.ndarray:
 TRUE_X_BC_CELL = _look_at([-1.05, -0.62, 0.62], [-0.50, -0.15, 0.0]) @ make_transform(
     rotation_from_rpy([0.0, 0.0, math.radians(4.0)]), [0.0, 0.0, 0.0])
 
+#: A second board on the table (``TWO_BOARDS``): a 5×4-square ChArUco of another dictionary
+#: (DICT_4X4_50: none of its markers reads as the first board's), 0.5 m beside the first, out of
+#: the cell camera's view, turned −25° about z_B.
+SIDE_TARGET_SPEC = "charuco:5x4:0.035:0.026:DICT_4X4_50"
+_SIDE_R_BT = rotation_from_rpy([0.0, 0.0, math.radians(-25.0)]) @ rotation_from_rpy(
+    [math.pi, 0.0, 0.0])
+X_BT_SIDE = make_transform(_SIDE_R_BT, np.array([-0.10, -0.52, 0.0]) - _SIDE_R_BT @ np.array(
+    [0.0875, 0.07, 0.0]))
+#: A cell camera watching the side board only, 0.8 m from it, 45° above the table.
+TRUE_X_BC_SIDE = _look_at([-0.12, -1.10, 0.58], [-0.10, -0.52, 0.0])
+
+
+
+def two_boards() -> dict:
+    """Two boards on the table, {name: (spec, "cell", X_BT)}: ``table`` (the example's board,
+    the robot poses aim at it) and ``side`` (``SIDE_TARGET_SPEC`` at ``X_BT_SIDE``)."""
+    from ..vision.targets import parse_target
+    return {"table": (TARGET_SPEC, "cell", _target_pose(parse_target(TARGET_SPEC))),
+            "side": (SIDE_TARGET_SPEC, "cell", X_BT_SIDE)}
+
+
+#: A two-board rig: the default rig's cameras and ``side`` watching the side board.
+TWO_BOARD_RIG = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
+                 "cell": ("cell", TRUE_X_BC_CELL), "side": ("cell", TRUE_X_BC_SIDE)}
+
 #: The default rig: name → (mount "hand" | "cell", X_EC or X_BC).
 DEFAULT_RIG = {"wrist": ("hand", TRUE_X_EC), "wrist2": ("hand", TRUE_X_EC2),
                "cell": ("cell", TRUE_X_BC_CELL)}
@@ -90,11 +119,10 @@ def _distort(image, K, dist):
                      borderMode=cv2.BORDER_REPLICATE)
 
 
-def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
-            supersample=SUPERSAMPLE, X_ET=None):
-    """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras); the
-    board at X_BT in the cell, or at ``X_ET`` on the flange when given. ``qs``: the joint
-    positions of every camera's images, or {name: its own}."""
+def _render(cameras: dict, qs, intrinsics, boards, pixels_per_metre, supersample=SUPERSAMPLE):
+    """{name: [grey image per q]} of cameras {name: (mount, X)} (one diagram, all cameras);
+    ``boards`` [(name, target, mount, X)]: each board at X_BT in the cell or X_ET on the
+    flange. ``qs``: the joint positions of every camera's images, or {name: its own}."""
     import cv2
     from pydrake.systems.framework import DiagramBuilder
 
@@ -102,19 +130,21 @@ def _render(cameras: dict, qs, intrinsics, X_BT, target, pixels_per_metre,
     from ..systems.rendered_camera import add_target_geometry, mount_rendered_camera
     builder = DiagramBuilder()
     arm = add_arm(builder, q0=_HOME_Q)
-    if X_ET is None:
-        add_target_geometry(arm.scene_graph, target, X_BT, pixels_per_metre=pixels_per_metre)
-    else:
+    for board_name, target, mount, X in boards:
+        if mount == "cell":
+            add_target_geometry(arm.scene_graph, target, X, pixels_per_metre=pixels_per_metre,
+                                name=f"target_{board_name}")
+            continue
         plant = arm.plant
         body = arm.ee_frame.body() if hasattr(arm.ee_frame, "body") else \
             plant.GetFrameByName(arm.ee_frame).body()
         frame = arm.ee_frame if hasattr(arm.ee_frame, "body") else \
             plant.GetFrameByName(arm.ee_frame)
         X_body_E = frame.GetFixedPoseInBodyFrame().GetAsMatrix4()
-        add_target_geometry(arm.scene_graph, target, X_body_E @ np.asarray(X_ET),
+        add_target_geometry(arm.scene_graph, target, X_body_E @ np.asarray(X),
                             pixels_per_metre=pixels_per_metre,
                             frame_id=plant.GetBodyFrameIdOrThrow(body.index()),
-                            source_id=plant.get_source_id())
+                            source_id=plant.get_source_id(), name=f"target_{board_name}")
     handles = {}
     for name, (mount, X) in cameras.items():
         frame = arm.ee_frame if mount == "hand" else arm.plant.world_frame()
@@ -142,7 +172,9 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
                          distortion: dict | None = None, moved: dict | None = None,
                          blank=(), pixels_per_metre: float = 2500.0,
                          robot_error=(0.0, 0.0), supersample: int = SUPERSAMPLE,
-                         board_mount: str = "cell") -> dict:
+                         board_mount: str = "cell", boards: dict | None = None,
+                         board_images: dict | None = None,
+                         moved_board: tuple | None = None) -> dict:
     """Renders the rig (module docstring) into ``out_dir`` and returns the truth (also written as
     ``truth.json``). ``cameras``: {name: (mount, X_EC or X_BC)} (default ``DEFAULT_RIG``).
     ``robot_error`` (deg, m): per-axis RMS of the error of the recorded flange poses, a smooth
@@ -150,7 +182,12 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     configuration), δ = A sin q + B cos q about and along E; the images are rendered at the true
     poses. ``supersample``: anti-aliasing factor of the renderer (k × k samples per pixel).
     ``board_mount`` "hand": the board ``HAND_TARGET_SPEC`` rides on the flange at ``TRUE_X_ET``
-    (default cameras ``HAND_BOARD_RIG``), not on the table."""
+    (default cameras ``HAND_BOARD_RIG``), not on the table. ``boards`` {name: (spec, mount
+    "cell" | "hand", X_BT | X_ET)}: several boards instead (e.g. ``two_boards()``; the first is
+    the one the robot poses aim at); ``board_images`` {name: n}: n more robot poses (after the
+    ``num_images``) aimed at that cell board the way the first ones aim at the first board;
+    ``moved_board`` (name, index, X_delta): from image ``index`` on, that board is at
+    X · X_delta (a board pushed during the recording; not with ``moved``)."""
     import cv2
     from ..vision.camera_model import CameraIntrinsics
     from ..vision.intrinsics import write_intrinsics_yaml
@@ -159,27 +196,56 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
     if board_mount not in ("cell", "hand"):
         raise ValueError(f"board_mount: expected 'cell' or 'hand', got {board_mount!r}")
     hand_board = board_mount == "hand"
+    if boards is None:
+        spec = HAND_TARGET_SPEC if hand_board else TARGET_SPEC
+        boards = {"board": (spec, board_mount, TRUE_X_ET if hand_board else
+                            _target_pose(parse_target(TARGET_SPEC)))}
+    elif not boards or any(m not in ("cell", "hand") for _, m, _ in boards.values()):
+        raise ValueError(f"boards: expected {{name: (spec, 'cell' | 'hand', X)}}, got {boards!r}")
+    board_images = dict(board_images or {})
+    for name, n in board_images.items():
+        if name not in boards or boards[name][1] != "cell":
+            raise ValueError(f"board_images: {name!r} is not a cell board of the rig")
     cameras = dict((HAND_BOARD_RIG if hand_board else DEFAULT_RIG) if cameras is None
                    else cameras)
     for name, (mount, _) in cameras.items():
         if mount not in ("hand", "cell"):
             raise ValueError(f"cameras[{name!r}]: mount must be 'hand' or 'cell', got {mount!r}")
     distortion, moved = dict(distortion or {}), dict(moved or {})
-    qs, X_BEs = sample_robot_poses(seed, num_images)
+    first_board = next(iter(boards.values()))
+    on_table = first_board[1] == "cell"
+    qs, X_BEs = sample_robot_poses(seed, num_images, first_board[0] if on_table else None,
+                                   first_board[2] if on_table else None)
+    qs = list(qs)
+    for i, (name, n) in enumerate(board_images.items()):
+        q2, X2 = sample_robot_poses(seed + 1000 * (i + 1), int(n), boards[name][0],
+                                    boards[name][2])
+        qs += list(q2)
+        X_BEs += list(X2)
+    qs = np.array(qs)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    X_BT = _target_pose(parse_target(TARGET_SPEC))
-    target = parse_target(HAND_TARGET_SPEC if hand_board else TARGET_SPEC)
-    X_ET = TRUE_X_ET if hand_board else None
+    board_list = [(n, parse_target(spec), m, np.asarray(X, float))
+                  for n, (spec, m, X) in boards.items()]
     fx, fy, cx, cy, width, height = INTRINSICS
     pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
                                distortion=(0.0,) * 5)
-    images = _render(cameras, qs, pinhole, X_BT, target, pixels_per_metre, supersample, X_ET)
+    images = _render(cameras, qs, pinhole, board_list, pixels_per_metre, supersample)
+    if moved_board is not None:
+        bname, k0, delta = moved_board
+        if moved or bname not in boards:
+            raise ValueError(f"moved_board: {bname!r} is not a board of the rig, or given with "
+                             "moved")
+        after = _render(cameras, qs[int(k0):], pinhole,
+                        [(n, t, m, X @ np.asarray(delta, float) if n == bname else X)
+                         for n, t, m, X in board_list], pixels_per_metre, supersample)
+        for n in cameras:
+            images[n][int(k0):] = after[n]
     if moved:
         first = min(int(k) for k, _ in moved.values())
         after = _render({n: (cameras[n][0], cameras[n][1] @ np.asarray(d, float))
-                         for n, (_, d) in moved.items()}, qs[first:], pinhole, X_BT, target,
-                        pixels_per_metre, supersample, X_ET)
+                         for n, (_, d) in moved.items()}, qs[first:], pinhole, board_list,
+                        pixels_per_metre, supersample)
         for n, (k, _) in moved.items():
             images[n][k:] = after[n][k - first:]
     truth_cams = {}
@@ -217,9 +283,16 @@ def generate_example_rig(out_dir, seed: int = 0, num_images: int = 10, cameras: 
             recorded[k] = X_BEs[k] @ make_transform(rotation_exp(d[:3]), d[3:])
     lines += [_tum_line(float(k), X) for k, X in enumerate(recorded)]
     (out / "robot_poses.tum").write_text("\n".join(lines) + "\n")
+    _, target, mount0, X0 = board_list[0]
     truth = {"description": "multi-camera rig rendered by handeye_drake/recorded/example_rig.py",
-             "seed": int(seed), "target": format_target(target), "board_mount": board_mount,
-             **({"X_ET": X_ET.tolist()} if hand_board else {"X_BT": X_BT.tolist()}),
+             "seed": int(seed), "target": format_target(target), "board_mount": mount0,
+             ("X_BT" if mount0 == "cell" else "X_ET"): X0.tolist(),
+             "boards": {n: {"target": format_target(t), "mount": m,
+                            ("X_BT" if m == "cell" else "X_ET"): X.tolist(),
+                            "moved": None if moved_board is None or moved_board[0] != n else
+                            {"from_index": int(moved_board[1]),
+                             "X_delta": np.asarray(moved_board[2]).tolist()}}
+                        for n, t, m, X in board_list},
              "intrinsics": {"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": width,
                             "height": height},
              "cameras": truth_cams, "X_BE": [X.tolist() for X in X_BEs],
@@ -341,8 +414,8 @@ def generate_stamped_rig(out_dir, seed: int = 0, num_poses: int = 8, cameras: di
     fx, fy, cx, cy, width, height = INTRINSICS
     pinhole = CameraIntrinsics(alpha_u=fx, alpha_v=fy, u0=cx, v0=cy, width=width, height=height,
                                distortion=(0.0,) * 5)
-    images = _render(cameras, {n: [q_at(t) for t in times[n]] for n in names}, pinhole, X_BT,
-                     target, pixels_per_metre, supersample)
+    images = _render(cameras, {n: [q_at(t) for t in times[n]] for n in names}, pinhole,
+                     [("board", target, "cell", X_BT)], pixels_per_metre, supersample)
     truth_cams = {}
     for n, (mount, X) in cameras.items():
         folder = out / n
@@ -428,6 +501,9 @@ if __name__ == "__main__":
     parser.add_argument("out_dir")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--num-images", type=int, default=10)
+    parser.add_argument("--two-boards", action="store_true",
+                        help="two boards on the table (table, side), TWO_BOARD_RIG's cameras, "
+                             "4 more robot poses aimed at the side board")
     parser.add_argument("--stamped", action="store_true",
                         help="the arm moving through the poses (--num-images of them), a robot "
                              "stream at 100 Hz, cameras free-running at their own rates with "
@@ -439,6 +515,8 @@ if __name__ == "__main__":
             f"{len(c['files'])} {n} images ({c['style']}, clock {c['time_offset_s']:+.3f} s)"
             for n, c in t["cameras"].items()) + f" to {a.out_dir}")
     else:
-        t = generate_example_rig(a.out_dir, a.seed, a.num_images)
+        t = generate_example_rig(a.out_dir, a.seed, a.num_images, **(
+            {"cameras": TWO_BOARD_RIG, "boards": two_boards(), "board_images": {"side": 4}}
+            if a.two_boards else {}))
         print(f"wrote {len(t['X_BE'])} images per camera ({', '.join(t['cameras'])}) to "
               f"{a.out_dir}")

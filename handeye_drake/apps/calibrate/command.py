@@ -98,6 +98,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                           "cameras: see docs/multi-camera.md)")
     src.add_argument("--board-mount", choices=("cell", "hand"), default=None,
                      help="rig: where the board is — cell (X_BT, default) or hand (X_ET)")
+    src.add_argument("--board", metavar="NAME:SPEC[:cell|hand]", action="append",
+                     dest="boards", default=None,
+                     help="rig: one of several boards, repeated: its name, its target spec "
+                          "(as --target) and where it is — cell (X_BT, default) or hand (X_ET); "
+                          "boards must differ in their markers (docs/multi-camera.md)")
     src.add_argument("--bag", metavar="PATH",
                      help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap (read without ROS)")
     src.add_argument("--images", nargs="+", metavar="PATH",
@@ -323,6 +328,9 @@ def run_calibrate_command(args) -> int:
                 raise ValueError(f"{option}: not read for a rig of cameras; {instead}")
         from .rig_command import run_rig_command
         return run_rig_command(args, rig_cameras, options_from_args(args))
+    if getattr(args, "boards", None):
+        raise ValueError(f"--board {args.boards[0]}: names a board of a rig of cameras (--camera "
+                         "NAME:DIR… or --rig); one camera takes --target SPEC")
     sources = [bool(args.bag), bool(args.images), bool(args.camera)]
     if sum(sources) != 1:
         raise ValueError("inputs: give one of --robot FILE --camera FILE, --bag PATH, or "

@@ -2,6 +2,8 @@
 
     handeye-drake calibrate --robot FILE --target SPEC \\
         --camera wrist:DIR[:hand|cell[:INTRINSICS]] --camera cell:DIR:cell:cell.yaml ...
+    handeye-drake calibrate --robot FILE --board table:SPEC[:cell|hand] --board side:SPEC2 \\
+        --camera wrist:DIR --camera cell:DIR:cell:cell.yaml ...
     handeye-drake calibrate --rig rig.yaml
     handeye-drake calibrate --bag PATH --robot-frames base_link:tool0 --target SPEC \\
         --camera wrist:/wrist/image_raw:hand --camera cell:/cell/image_raw:cell
@@ -9,8 +11,11 @@
 Image k of every camera pairs with robot pose k, or in time when every image has a stamp (file
 names, a stamps file: ``--pairing``, docs/multi-camera.md); from a bag, each camera's images pair with the
 robot's tf in time (its clock offset estimated, as ``--bag --image-topic``). ``--board-mount``
-says where the board is (cell: X_BT, default; hand: X_ET). A rig YAML holds the same (paths
-relative to the file)::
+says where the board is (cell: X_BT, default; hand: X_ET). Several boards: ``--board
+NAME:SPEC[:cell|hand]``, repeated, instead of ``--target`` (the mount, last, cannot be read as a
+field of a spec). A rig YAML holds the same (paths relative to the file; several boards as
+``boards: {NAME: {target: SPEC, mount: cell}, …}`` instead of ``target`` and ``board``, and a
+camera's ``boards: [NAME, …]`` limits the boards it looks for)::
 
     robot: robot_poses.tum
     target: charuco:7x5:0.04:0.03:DICT_5X5_100
@@ -30,12 +35,13 @@ import json
 import os
 from pathlib import Path
 
-from ...calibration.rig import RigCamera, calibrate_rig
+from ...calibration.rig import RigBoard, RigCamera, calibrate_rig, check_boards
 
 #: Largest rig YAML read (bytes): a rig of many cameras is a few kB.
 _MAX_RIG_BYTES = 1_000_000
-_RIG_KEYS = ("robot", "target", "board", "cameras")
-_CAMERA_KEYS = ("images", "mount", "intrinsics", "time_offset")
+_RIG_KEYS = ("robot", "target", "board", "boards", "cameras")
+_CAMERA_KEYS = ("images", "mount", "intrinsics", "time_offset", "boards")
+_BOARD_KEYS = ("target", "mount")
 
 
 def _is(path, test: str = "exists") -> bool:
@@ -172,8 +178,38 @@ def parse_rig_camera(text: str, bag=None) -> RigCamera:
     return cam
 
 
+def parse_rig_board(text: str) -> RigBoard:
+    """``NAME:SPEC[:cell|hand]`` → ``RigBoard`` (ValueError naming ``--board``). The mount is
+    the last field when it reads ``cell`` or ``hand`` — no target spec ends so (their last
+    fields are numbers, ``legacy``, ``white`` or ``black``)."""
+    from ...vision.targets import SPEC_FORMS
+    form = "expected NAME:SPEC[:cell|hand], e.g. table:charuco:7x5:0.04:0.03:DICT_5X5_100:cell"
+    name, sep, rest = str(text).partition(":")
+    if not sep or not rest:
+        raise ValueError(f"--board {text}: {form}")
+    if name.strip().lower() in SPEC_FORMS:
+        raise ValueError(f"--board {text}: the board's name comes first ({form})")
+    spec, mount = rest, "cell"
+    head, sep, last = rest.rpartition(":")
+    if sep and last.strip().lower() in ("cell", "hand"):
+        spec, mount = head, last.strip().lower()
+    try:
+        return RigBoard(name, spec, mount)
+    except ValueError as e:
+        if sep and mount == "cell" and spec == rest:
+            try:
+                RigBoard(name, head, "cell")
+            except ValueError:
+                pass
+            else:   # the spec without its last field reads: that field was meant as the mount
+                raise ValueError(f"--board {text}: mount {last!r}: expected cell or hand") \
+                    from None
+        raise ValueError(f"--board {text}: {e}") from None
+
+
 def read_rig_yaml(path) -> dict:
-    """{"robot", "target", "board", "cameras": [RigCamera]} of a rig YAML (module docstring)."""
+    """{"robot", "target", "board", "boards": [RigBoard] | None, "cameras": [RigCamera]} of a
+    rig YAML (module docstring)."""
     import yaml
     p = Path(path)
     if p.is_dir():
@@ -195,6 +231,33 @@ def read_rig_yaml(path) -> dict:
     for key in ("robot", "target", "board"):
         if doc.get(key) is not None and not isinstance(doc[key], str):
             raise ValueError(f"--rig {path}: {key}: expected a string, got {doc[key]!r}")
+    boards = None
+    if doc.get("boards") is not None:
+        if doc.get("target") is not None or doc.get("board") is not None:
+            raise ValueError(f"--rig {path}: give either target (and board) or boards, not both")
+        if not isinstance(doc["boards"], dict) or not doc["boards"]:
+            raise ValueError(f"--rig {path}: boards: expected {{NAME: {{target: SPEC, mount: "
+                             "cell|hand}}, …}}")
+        boards = []
+        for name, b in doc["boards"].items():
+            if isinstance(b, str):
+                b = {"target": b}
+            if not isinstance(b, dict) or "target" not in b:
+                raise ValueError(f"--rig {path}: board {name}: expected {{target: SPEC, mount: "
+                                 "cell|hand}}")
+            unknown = sorted(str(k) for k in b if k not in _BOARD_KEYS)
+            if unknown:
+                raise ValueError(f"--rig {path}: board {name}: unknown key "
+                                 f"{', '.join(map(repr, unknown))} (expected "
+                                 f"{', '.join(_BOARD_KEYS)})")
+            try:
+                boards.append(RigBoard(str(name), b["target"], b.get("mount", "cell")))
+            except ValueError as e:
+                raise ValueError(f"--rig {path}: {e}") from None
+        try:
+            check_boards(boards)
+        except ValueError as e:
+            raise ValueError(f"--rig {path}: {e}") from None
     base = p.parent
 
     def rel(v):
@@ -224,13 +287,22 @@ def read_rig_yaml(path) -> dict:
         else:
             intr_arg = rel(intr)
         try:
+            seen = c.get("boards")
             cams.append(RigCamera(str(name), rel(c["images"]), c.get("mount", "hand"), intr_arg,
-                                  time_offset=c.get("time_offset")))
+                                  time_offset=c.get("time_offset"),
+                                  boards=[str(v) for v in seen] if isinstance(seen, list)
+                                  else seen))
         except ValueError as e:
             raise ValueError(f"--rig {path}: {e}") from None
         check_rig_camera(cams[-1], f"--rig {path}: camera {name}")
+    names = [b.name for b in boards or []]
+    for cam in cams:
+        unknown = [b for b in cam.boards or () if b not in names]
+        if unknown:
+            raise ValueError(f"--rig {path}: camera {cam.name}: boards: {', '.join(unknown)} "
+                             f"not among the boards ({', '.join(names) or 'none: give boards:'})")
     return {"robot": rel(doc.get("robot")), "target": doc.get("target"),
-            "board": doc.get("board"), "cameras": cams}
+            "board": doc.get("board"), "boards": boards, "cameras": cams}
 
 
 def _robot_poses(robot) -> int:
@@ -290,6 +362,19 @@ def run_rig_command(args, rig_cameras, options) -> int:
     if args.bag and robot:
         raise ValueError("--robot: not read with --bag; the robot's poses are the bag's tf "
                          "(--robot-frames BASE:EE)")
+    given = list(getattr(args, "boards", None) or [])
+    if given and target:
+        raise ValueError(f"--board {given[0]}: give several boards as --board NAME:SPEC[:MOUNT] "
+                         "or one as --target SPEC, not both")
+    if given and board:
+        raise ValueError(f"--board-mount: with --board, each board's mount is given in it "
+                         f"(--board NAME:SPEC:{board})")
+    boards = [parse_rig_board(t) for t in given] or None
+    if boards:
+        try:
+            check_boards(boards)
+        except ValueError as e:
+            raise ValueError(f"--board: {str(e).removeprefix('boards: ')}") from None
     cams = [parse_rig_camera(t, args.bag) for t in rig_cameras]
     where = {c.name: f"--camera {t}" for c, t in zip(cams, rig_cameras)}
     if rig:
@@ -299,23 +384,39 @@ def run_rig_command(args, rig_cameras, options) -> int:
         # Given on the command line and in the file: which one holds is not to be guessed.
         for option, given, key in (("--robot", robot, "robot"), ("--target", target, "target"),
                                    ("--board-mount", board, "board")):
-            mine = doc[key]
+            mine = doc.get(key)
             if given and mine and (Path(given).resolve() != Path(mine).resolve()
                                    if key == "robot" else given != mine):
                 raise ValueError(f"{option} {given}: --rig {rig} gives {key}: {mine}; give it "
                                  "in one place")
-        robot, target = robot or doc["robot"], target or doc["target"]
-        board = board or doc["board"]
+        robot = robot or doc["robot"]
+        if not (boards or target):
+            boards, target, board = doc["boards"], doc["target"], board or doc["board"]
+        board = board or doc.get("board")
     board = board or "cell"
     if not robot and not args.bag:
         raise ValueError("--robot: the robot poses (X_BE) are needed with a rig of image "
                          "folders")
-    if not target:
+    names = [b.name for b in boards or []]
+    for c in cams:
+        unknown = [b for b in c.boards or () if b not in names]
+        if unknown:
+            raise ValueError(f"--rig: camera {c.name} looks for board {', '.join(unknown)}, "
+                             f"not among the boards given ({', '.join(names) or 'one --target'})")
+    if boards:
+        target = boards
+    elif not target:
         raise ValueError("--target: the calibration target is needed with a rig (e.g. "
                          "charuco:7x5:0.04:0.03:DICT_5X5_100)")
     if board not in ("cell", "hand"):
         raise ValueError(f"{'--board-mount' if args.board_mount else f'--rig {rig}: board'}: "
                          f"expected cell or hand, got {board!r}")
+    if not boards:
+        try:
+            RigBoard("board", target, board)
+        except ValueError as e:
+            raise ValueError(f"--target {target}: {str(e).removeprefix('board board: ')}") \
+                from None
     if args.images:
         raise ValueError("--images: a rig takes its images from each camera's folder "
                          "(--camera NAME:DIR or --rig); leave out --images")
@@ -401,4 +502,5 @@ def run_rig_command(args, rig_cameras, options) -> int:
     return 1 if status == "FAIL" or (status == "WARN" and args.strict) else 0
 
 
-__all__ = ["is_rig_camera", "parse_rig_camera", "read_rig_yaml", "run_rig_command"]
+__all__ = ["is_rig_camera", "parse_rig_board", "parse_rig_camera", "read_rig_yaml",
+           "run_rig_command"]
