@@ -112,7 +112,7 @@ def check_rig_images(cam: RigCamera, where: str, poses: int) -> None:
     from ...vision.image_files import image_size
     from ...vision.intrinsics import load_intrinsics
     paths = image_paths(cam.images)
-    if len(paths) != poses:
+    if poses is not None and len(paths) != poses:
         raise ValueError(f"{where}: {len(paths)} images but {poses} robot poses; image k pairs "
                          "with robot pose k, one each")
     sizes = {}
@@ -272,7 +272,7 @@ def read_rig_yaml(path) -> dict:
             # YAML reads ~, null, yes, no, true as these: a camera silently named "None".
             raise ValueError(f"--rig {path}: camera name {name!r}: expected letters, digits, _ "
                              "or - (quote it)")
-        for key in _CAMERA_KEYS:
+        for key in ("images", "mount", "intrinsics"):   # time_offset, boards: checked below
             if c.get(key) is not None and not isinstance(c[key], str):
                 raise ValueError(f"--rig {path}: camera {name}: {key}: expected a string, got "
                                  f"{c[key]!r:.80}")
@@ -432,7 +432,7 @@ def run_rig_command(args, rig_cameras, options) -> int:
             raise ValueError(f"{who}: cameras {sources[key]} and {c.name} read the same "
                              f"{'topic ' + c.topic if c.topic else 'images ' + str(c.images)}")
         sources[key] = c.name
-    if all(c.mount == board for c in cams):
+    if not boards and all(c.mount == board for c in cams):
         raise ValueError(f"{who}: every camera is on the board's mount ({board}): each sees one "
                          "fixed view, nothing places the board; a rig needs a camera on the "
                          f"other mount (or --board-mount {'hand' if board == 'cell' else 'cell'}"
@@ -443,15 +443,18 @@ def run_rig_command(args, rig_cameras, options) -> int:
         if len({c.mount for c in cams}) > 1:
             raise ValueError(f"--parent-frame {args.parent_frame}: one parent for cameras on "
                              "the hand and in the cell; their frames hang from different links")
-    from ...vision.targets import parse_target
-    try:
-        parse_target(target)
-    except ValueError as e:
-        raise ValueError(f"--target {target}: {e}") from None
+    if not boards:
+        from ...vision.targets import parse_target
+        try:
+            parse_target(target)
+        except ValueError as e:
+            raise ValueError(f"--target {target}: {e}") from None
     if not args.bag:
         poses = _robot_poses(robot)
         for c in cams:
-            check_rig_images(c, where[c.name], poses)
+            # Paired in time (or may be: auto), counts need not match; the pairing says.
+            check_rig_images(c, where[c.name], poses if getattr(args, "pairing", "auto") ==
+                             "index" else None)
     if args.export:
         from ...recorded.exports import _check_name
         for c in cams:   # the exports' frame NAME_optical_frame, refused before the fit
