@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from ..estimation.reprojection import CornerData, intrinsics_matrix, intrinsics_vector
+from ..estimation.reprojection import (CornerData, intrinsics_matrix, intrinsics_vector,
+                                       scale_midpoint)
 from ..estimation.rig_bundle import (MOUNTS, RigBlock, fit_rig, jackknife_factors,
                                      pose_error_frame, tangent)
 from ..estimation.se3 import inverse
@@ -97,6 +98,9 @@ class CameraResult:
     agreement: dict = field(default_factory=dict)
     #: Factor (≥ 1) on the joint fit's covariance from the jackknife over instants.
     variance_factor: float = 1.0
+    #: With the board's scale s free: {"print": X as fitted (the board s× its declared size),
+    #: "robot": translation / s (the robot's translations s× long)}; ``X`` is their midpoint.
+    readings: dict = field(default_factory=dict)
     streams: object = field(default=None, repr=False)
 
     @property
@@ -127,6 +131,11 @@ class RigResult:
     relative: dict = field(default_factory=dict)
     fit: object = None
     notes: list = field(default_factory=list)
+    #: Reasons of the rig as a whole (not of one camera): the board's scale.
+    reasons: list = field(default_factory=list)
+    #: The board's scale (true sizes / declared) found by the joint fit: {"factor", "std", "z",
+    #: "significant", "readings"} — the answers cover both readings (``_scale_readings``).
+    board_scale: dict = field(default_factory=dict)
 
     def lines(self) -> list[str]:
         out = [f"rig {self.verdict.line()}"]
@@ -142,6 +151,11 @@ class RigResult:
                            f"(σ {1000 * st[0]:.3f} {1000 * st[1]:.3f} {1000 * st[2]:.3f} mm), "
                            f"rotation σ {sr[0]:.4f} {sr[1]:.4f} {sr[2]:.4f}°; pixels RMS "
                            f"{c.pixel_rms_px:.3f} px, intrinsics {c.intrinsics_model}")
+        if self.board_scale.get("factor") is not None:
+            b = self.board_scale
+            out.append(f"board scale {b['factor']:.5f} ± {b['std']:.2g} (true sizes / declared, "
+                       "or the robot's translations that × their true lengths; the answers "
+                       "cover both readings)")
         for (a, b), (X, C) in self.relative.items():
             d = np.sqrt(np.maximum(np.diag(C), 0.0))
             out.append(f"X_{a}_{b} (camera {b} in camera {a}): translation "
@@ -164,6 +178,8 @@ class RigResult:
                                          "model": c.intrinsics_model},
                           "pixel_rms_px": c.pixel_rms_px,
                           "jackknife_variance_factor": c.variance_factor})
+                if c.readings:
+                    d["readings"] = {k: v.tolist() for k, v in c.readings.items()}
             if c.alone is not None:
                 off = c.alone.time_offset
                 d["alone"] = {"verdict": c.alone.verdict.to_dict(),
@@ -175,7 +191,8 @@ class RigResult:
                         ("X_BT" if self.board_mount == "cell" else "X_ET"):
                         None if self.X_board is None else self.X_board.tolist(),
                         "board_covariance": None if self.board_covariance is None
-                        else self.board_covariance.tolist(), "notes": self.notes},
+                        else self.board_covariance.tolist(), "notes": self.notes,
+                        "board_scale": self.board_scale},
                 "cameras": {n: cam(c) for n, c in self.cameras.items()},
                 "relative": [{"from": a, "to": b, "X": X.tolist(), "covariance": C.tolist()}
                              for (a, b), (X, C) in self.relative.items()]}
@@ -311,12 +328,53 @@ def _blocks(cams, board_mount):
     return blocks
 
 
-def _joint(cams, board_mount, X_board0, factors):
+def _scale_readings(fit, rig):
+    """The board's scale s found by the joint fit (free: a print off by a fraction of a percent
+    is the rule; the same pixels as the robot's translations s× long — the two readings of the
+    single-camera answer, ``corners._use_scale``): fills ``rig.board_scale`` and the rig's
+    reasons (WARN naming the factor beyond 0.2 % and 5σ, FAIL beyond 3 % or a unit factor) and
+    returns scale(X, C7) → (answer X, 6×6 covariance, readings) — the midpoint of the two
+    readings, its σ covering both."""
+    from .corners import SCALE_MIN_ERROR, SCALE_SIGMAS, SCALE_WARN_MAX, _unit_mistake
+    if ("scale", 0) not in fit.columns:
+        return lambda X, C: (X, C, {})
+    s, sd = float(fit.scales[0]), fit.scale_std(0)
+    z = (s - 1.0) / max(sd, 1e-12)
+    significant = abs(z) > SCALE_SIGMAS and abs(s - 1.0) > SCALE_MIN_ERROR
+    rig.board_scale = {"factor": s, "std": sd, "z": z, "significant": bool(significant),
+                       "meaning": "the board's true sizes are factor × those declared, or the "
+                                  "robot's translations are factor × their true lengths"}
+    unit = _unit_mistake(s)
+    if significant and (unit is not None or abs(s - 1.0) > SCALE_WARN_MAX):
+        what = f"the sizes look like {unit}" if unit is not None else \
+            f"{100 * abs(s - 1.0):.3g} % is beyond a print's or a robot's tolerance"
+        rig.reasons.append(Reason(
+            "FAIL", "target_size", f"the board's declared size is wrong: the cameras jointly say "
+            f"its sizes are {s:.4g}× those declared (± {sd:.2g}, {abs(z):.0f}σ from 1) — {what}; "
+            f"multiply the sizes of --target by {s:.4g} or measure the printed board"))
+    elif significant:
+        rig.reasons.append(Reason(
+            "WARN", "target_scale", f"the board's scale: the cameras jointly say its sizes are "
+            f"{s:.4g}× those declared (± {sd:.2g}, {abs(z):.0f}σ from 1) — a print "
+            f"{100 * abs(s - 1.0):.2g} % {'large' if s > 1 else 'small'}, or the robot's "
+            f"translations {s:.4g}× their true lengths: the pixels cannot tell the two apart; "
+            "every answer is the midpoint of the two readings (its σ covers both; "
+            "calibration.json holds each camera's readings) — measure the printed board's outer "
+            "corners to tell them apart"))
+
+    def scale(X, C):
+        X_robot, X_mid, C_mid = scale_midpoint(X, C, s)
+        return X_mid, C_mid, {"print": X.copy(), "robot": X_robot}
+    return scale
+
+
+def _joint(cams, board_mount, X_board0, factors, free_scale=True):
     blocks = _blocks(cams, board_mount)
     px0 = [max(float(np.median([d.reprojection_rms_px for d in c.streams.detections])) /
                math.sqrt(2), 0.05) for c in cams]
     fit = fit_rig(blocks, [c.X for c in cams], [X_board0], [c.intrinsics for c in cams],
-                  [c.intrinsics_model for c in cams], px0, None, variance_factors=factors)
+                  [c.intrinsics_model for c in cams], px0, None, variance_factors=factors,
+                  free_scale=free_scale)
     fit.rig_blocks = [dataclasses.replace(b, variance_factor=f)
                       for b, f in zip(blocks, [max(float(v), 1.0) for v in factors])]
     return fit
@@ -427,8 +485,9 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
         for c in moving:
             others = [o for o in moving if o is not c]
             try:
+                # At the declared scale: a print's scale moves every camera's board alike.
                 f = _joint(others, board_mount, X_board0,
-                           [factors[o.name] for o in others])
+                           [factors[o.name] for o in others], free_scale=False)
             except ValueError:
                 continue
             d = tangent(c.alone.X_fixed, f.X_boards[0])
@@ -479,7 +538,6 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
             cams = []
         else:
             rig.fit = fit
-            rig.X_board, rig.board_covariance = fit.X_boards[0], fit.board_covariance(0)
             pairs = [(i, j) for i in range(len(cams)) for j in range(i + 1, len(cams))
                      if cams[j].mount == cams[i].mount]
             # What the corners' noise model misses shows in how the answers move when each
@@ -490,10 +548,11 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                     f"{cams[k[1]].name if k[0] == 'camera' else cams[k[1]].name + '→' + cams[k[2]].name}"
                     f" ×{math.sqrt(v):.2f}" for k, v in jack.items() if v > 1.0) or
                     "σ checked by a delete-one-instant jackknife: not widened")
+            scale = _scale_readings(fit, rig)
             for i, c in enumerate(cams):
-                c.X = fit.X_cameras[i]
                 c.variance_factor = jack.get(("camera", i), 1.0)
-                c.covariance = fit.camera_covariance(i) * c.variance_factor
+                c.X, c.covariance, c.readings = scale(
+                    fit.X_cameras[i], fit.with_scale("camera", i) * c.variance_factor)
                 if options.robot_accuracy is not None:
                     # As the single-camera answer: the robot's pose error, constant over the
                     # recording, moves every camera's answer — a moving camera's about the
@@ -503,23 +562,28 @@ def calibrate_rig(cameras, robot, target, board_mount: str = "cell", options=Non
                         c.X, options.robot_accuracy)
                 c.intrinsics = fit.intrinsics[i]
                 c.pixel_rms_px = fit.blocks[i].rms_px
+            rig.X_board, rig.board_covariance, _ = scale(fit.X_boards[0],
+                                                         fit.with_scale("board", 0))
             for i, j in pairs:
-                X, C = fit.relative(i, j)
-                rig.relative[(cams[i].name, cams[j].name)] = (X, C * jack.get(("pair", i, j),
-                                                                               1.0))
+                X, C = fit.relative(i, j, board=0)
+                rig.relative[(cams[i].name, cams[j].name)] = scale(
+                    X, C * jack.get(("pair", i, j), 1.0))[:2]
     for c in results.values():
         if c not in cams:
             c.X, c.covariance = None, None
     reasons = [Reason(r.level, r.code, r.message) for c in results.values()
                for r in c.verdict.reasons if r.level == "FAIL"]
     warns = [r for c in results.values() for r in c.verdict.reasons if r.level == "WARN"]
+    reasons += [r for r in rig.reasons if r.level == "FAIL"]
+    warns += [r for r in rig.reasons if r.level == "WARN"]
     failed = [n for n, c in results.items() if c.verdict.status == "FAIL"]
-    if failed:
+    if failed or reasons:
         first = [results[n].verdict.reasons[0].message for n in failed
                  if results[n].verdict.reasons]
-        rig.verdict = Verdict("FAIL", [Reason(
+        rig.verdict = Verdict("FAIL", ([Reason(
             "FAIL", "cameras", f"camera{'s' * (len(failed) > 1)} {', '.join(failed)} "
-            f"FAIL{'' if len(failed) > 1 else 's'}: " + "; ".join(first))] + reasons)
+            f"FAIL{'' if len(failed) > 1 else 's'}: " + "; ".join(first))] if failed else [])
+            + reasons)
     else:
         rig.verdict = Verdict("WARN" if warns else "OK", warns)
     if any(c.mount == board_mount for c in cams):

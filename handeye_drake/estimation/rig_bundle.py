@@ -110,6 +110,13 @@ class RigFit:
     columns: dict
     blocks: list
     iterations: int = 0
+    #: Per board its scale (true sizes / declared: 1 unless ``fit_rig(free_scale=True)``).
+    scales: list = None
+
+    def scale_std(self, b: int) -> float:
+        s = self.columns.get(("scale", b))
+        return 0.0 if s is None else math.sqrt(max(float(self.covariance_full[s, s][0, 0]),
+                                                    0.0))
 
     def camera_covariance(self, c: int) -> np.ndarray:
         s = self.columns[("camera", c)]
@@ -124,9 +131,11 @@ class RigFit:
         s = self.columns[("intrinsics", c)]
         return S @ self.covariance_full[s, s] @ S.T
 
-    def relative(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    def relative(self, a: int, b: int, board: int | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """X_{C_a C_b} = X_a⁻¹ X_b (meaningful for two cameras on one mount) and its 6×6
-        covariance [δθ; δt] (R = exp(δθ) R̂), from the joint covariance of X_a and X_b."""
+        covariance [δθ; δt] (R = exp(δθ) R̂), from the joint covariance of X_a and X_b; with
+        ``board`` and its scale free, 7×7 of [δθ; δt; δs_board] (``with_scale``)."""
         Xa, Xb = self.X_cameras[a], self.X_cameras[b]
         X = inverse(Xa) @ Xb
         J = np.zeros((6, 12))
@@ -140,8 +149,22 @@ class RigFit:
                        ) / (2 * h)
         sa, sb = self.columns[("camera", a)], self.columns[("camera", b)]
         idx = np.r_[np.arange(sa.start, sa.stop), np.arange(sb.start, sb.stop)]
+        if board is not None and ("scale", board) in self.columns:
+            idx = np.r_[idx, self.columns[("scale", board)].start]
+            J7 = np.zeros((7, 13))
+            J7[:6, :12], J7[6, 12] = J, 1.0
+            J = J7
         C = J @ self.covariance_full[np.ix_(idx, idx)] @ J.T
         return X, 0.5 * (C + C.T)
+
+    def with_scale(self, kind: str, i: int, board: int = 0) -> np.ndarray:
+        """Covariance of [δθ; δt] of camera or board ``i`` (``kind`` "camera" | "board") and the
+        scale of ``board`` (7×7; 6×6 when the scale was held)."""
+        s = self.columns[(kind, i)]
+        idx = np.arange(s.start, s.stop)
+        if ("scale", board) in self.columns:
+            idx = np.r_[idx, self.columns[("scale", board)].start]
+        return self.covariance_full[np.ix_(idx, idx)].copy()
 
 
 def _perturb(X, d):
@@ -156,7 +179,7 @@ def tangent(X1, X2) -> np.ndarray:
     return np.concatenate([rotation_log(X1[:3, :3] @ X2[:3, :3].T), X1[:3, 3] - X2[:3, 3]])
 
 
-def _columns(num_cameras, num_boards, S):
+def _columns(num_cameras, num_boards, S, free_scale=False):
     cols, n = {}, 0
     for c in range(num_cameras):
         cols[("camera", c)] = slice(n, n + 6)
@@ -168,29 +191,43 @@ def _columns(num_cameras, num_boards, S):
         m = S[c].shape[1]
         cols[("intrinsics", c)] = slice(n, n + m)
         n += m
+    if free_scale:
+        for b in range(num_boards):
+            cols[("scale", b)] = slice(n, n + 1)
+            n += 1
     return cols, n
 
 
 def _block_columns(blk, cols):
     c, b = blk.camera, blk.board
-    return np.r_[np.arange(cols[("camera", c)].start, cols[("camera", c)].stop),
-                 np.arange(cols[("board", b)].start, cols[("board", b)].stop),
-                 np.arange(cols[("intrinsics", c)].start, cols[("intrinsics", c)].stop)]
+    out = np.r_[np.arange(cols[("camera", c)].start, cols[("camera", c)].stop),
+                np.arange(cols[("board", b)].start, cols[("board", b)].stop),
+                np.arange(cols[("intrinsics", c)].start, cols[("intrinsics", c)].stop)]
+    if ("scale", b) in cols:   # ``_linearize``'s scale column comes last
+        out = np.r_[out, cols[("scale", b)].start]
+    return out
 
 
 class _RigState:
-    def __init__(self, X_cameras, X_boards, v, e):
+    def __init__(self, X_cameras, X_boards, v, e, scales=None):
         self.X_c = [np.asarray(X, float).copy() for X in X_cameras]
         self.X_b = [np.asarray(X, float).copy() for X in X_boards]
         self.v = [np.asarray(x, float).copy() for x in v]
         self.e = [np.asarray(x, float).copy() for x in e]
+        self.s = [1.0] * len(self.X_b) if scales is None else [float(x) for x in scales]
 
     def block(self, i, blk) -> _State:
-        return _State(self.X_c[blk.camera], self.X_b[blk.board], self.v[blk.camera], 1.0,
-                      self.e[i])
+        return _State(self.X_c[blk.camera], self.X_b[blk.board], self.v[blk.camera],
+                      self.s[blk.board], self.e[i])
 
     def retract(self, dg, de, cols, S) -> "_RigState":
-        new = _RigState(self.X_c, self.X_b, self.v, [e + d for e, d in zip(self.e, de)])
+        new = _RigState(self.X_c, self.X_b, self.v, [e + d for e, d in zip(self.e, de)],
+                        self.s)
+        for b in range(len(new.s)):
+            if ("scale", b) in cols:
+                new.s[b] = new.s[b] + float(dg[cols[("scale", b)]][0])
+                if not new.s[b] > 0.0:
+                    raise ValueError("board scale left (0, ∞)")
         for c in range(len(new.X_c)):
             new.X_c[c] = _perturb(new.X_c[c], dg[cols[("camera", c)]])
             new.v[c] = new.v[c] + S[c] @ dg[cols[("intrinsics", c)]]
@@ -213,7 +250,8 @@ def _systems(blocks, st, S, w, inv_prior, cols, G):
     roots, rhs, parts, res, jes = [], [], [], [], []
     for i, blk in enumerate(blocks):
         d = blk.data
-        r, J_g, J_e = _linearize(d, st.block(i, blk), S[blk.camera], False, True, blk.frame)
+        r, J_g, J_e = _linearize(d, st.block(i, blk), S[blk.camera], ("scale", blk.board) in cols,
+                                 True, blk.frame)
         Gb = J_g.shape[2]
         starts = np.searchsorted(d.image, np.arange(d.num_images))
         A, b = _image_systems(d, J_g, J_e, r, st.e[i], w[i], inv_prior[i], starts)
@@ -279,7 +317,7 @@ def _solve(blocks, st, S, cols, G, sigma, ps, weights, max_iter=30, tol=1e-10):
 def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma0=None,
             pose_sigma0=None, estimate_noise: bool = True, robust: bool = True,
             max_rounds: int = 3, max_em: int = 10, variance_factors=None,
-            covariance: bool = True) -> RigFit:
+            covariance: bool = True, free_scale: bool = False, scales0=None) -> RigFit:
     """The joint corner-level fit (module docstring).
 
     Args:
@@ -293,6 +331,9 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             model says).
         covariance: False skips the covariance (``covariance_full`` None: a refit whose
             answer alone is wanted, e.g. the jackknife's).
+        free_scale: each board's scale s (true sizes / declared) is an unknown too (a print a
+            fraction of a percent off; the same pixels as the robot's translations s× long).
+        scales0: per board the scale's start (and value held without ``free_scale``).
 
     Raises:
         ValueError: bad arguments, or data that do not determine every unknown (a camera whose
@@ -313,7 +354,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             raise ValueError(f"fit_rig: camera {blk.camera} has {blk.data.num_images} images "
                              "of board {blk.board}; ≥ 3 needed")
     S = [_selection(m, v) for m, v in zip(models, v0)]
-    cols, G = _columns(nc, nb, S)
+    cols, G = _columns(nc, nb, S, free_scale)
     nbk = len(blocks)
     factors = [max(float(f), 1.0) for f in (variance_factors or [1.0] * nbk)]
     blocks = [dataclasses.replace(b, variance_factor=f) for b, f in zip(blocks, factors)]
@@ -321,7 +362,8 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
     floor = np.repeat(POSE_SIGMA_FLOOR, 3)
     ps = [np.maximum(np.asarray(p if p is not None else [1e-3] * 6, float), floor)
           for p in (pose_sigma0 or [None] * nbk)]
-    st = _RigState(X_cameras0, X_boards0, v0, [np.zeros((b.data.num_images, 6)) for b in blocks])
+    st = _RigState(X_cameras0, X_boards0, v0, [np.zeros((b.data.num_images, 6)) for b in blocks],
+                   scales0)
     corner_ok = [np.ones(len(b.data.image), bool) for b in blocks]
     image_ok = [np.ones(b.data.num_images, bool) for b in blocks]
     total = 0
@@ -358,7 +400,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
                     PIXEL_SIGMA_FLOOR ** 2))
                 ok = image_ok[i]
                 n_ok = int(ok.sum())
-                Gb = 12 + S[blk.camera].shape[1]
+                Gb = 12 + S[blk.camera].shape[1] + int(free_scale)
                 reml = n_ok / max(n_ok - Gb / 6.0, 1.0)
                 new_ps = np.sqrt(np.maximum(reml * np.mean(st.e[i][ok] ** 2 + np.diagonal(
                     P_e[ok], axis1=1, axis2=2), axis=0), floor ** 2))
@@ -405,7 +447,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             sigma[i], ps[i], corner_ok[i], image_ok[i], img_rms,
             np.sum(st.e[i] ** 2 / ps[i] ** 2, axis=1), st.e[i].copy(),
             float(math.sqrt(np.mean(n2[used]))) if used.any() else math.nan, r))
-    return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total)
+    return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total, list(st.s))
 
 
 
@@ -433,7 +475,8 @@ def jackknife_factors(blocks, fit: RigFit, pairs=()) -> dict:
                             [r.pixel_sigma for r in fit.blocks],
                             [r.pose_sigma for r in fit.blocks], estimate_noise=False,
                             robust=False, variance_factors=[b.variance_factor for b in blocks],
-                            covariance=False)
+                            covariance=False, free_scale=any(k[0] == "scale" for k in fit.columns),
+                            scales0=fit.scales)
             except ValueError:
                 continue
             answers.append(f)
