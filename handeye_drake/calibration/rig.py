@@ -372,9 +372,16 @@ def _joint(cams, board_mount, X_board0, factors, free_scale=True):
     blocks = _blocks(cams, board_mount)
     px0 = [max(float(np.median([d.reprojection_rms_px for d in c.streams.detections])) /
                math.sqrt(2), 0.05) for c in cams]
+    # The robot error that repeats over the recording, as each camera's own calibration
+    # measured it (the largest): in every answer's σ, the camera-to-camera transforms' too.
+    levels = [c.alone.corners.robot_level for c in cams
+              if c.alone is not None and c.alone.corners is not None
+              and c.alone.corners.robot_level]
+    level = None if not levels else (max(v["rotation_deg"] for v in levels),
+                                     max(v["translation_m"] for v in levels))
     fit = fit_rig(blocks, [c.X for c in cams], [X_board0], [c.intrinsics for c in cams],
                   [c.intrinsics_model for c in cams], px0, None, variance_factors=factors,
-                  free_scale=free_scale)
+                  free_scale=free_scale, robot_level=level)
     fit.rig_blocks = [dataclasses.replace(b, variance_factor=f)
                       for b, f in zip(blocks, [max(float(v), 1.0) for v in factors])]
     return fit

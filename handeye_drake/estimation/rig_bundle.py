@@ -117,6 +117,9 @@ class RigFit:
     #: instants) and its value per shared instant.
     robot_sigma: np.ndarray = None
     robot_errors: np.ndarray = None
+    #: The covariance with the robot's repeating error marginalized at every instant
+    #: (``fit_rig(robot_level=…)``), the camera-to-camera transforms'; None without.
+    covariance_systematic: np.ndarray = None
 
     def scale_std(self, b: int) -> float:
         s = self.columns.get(("scale", b))
@@ -159,7 +162,9 @@ class RigFit:
             J7 = np.zeros((7, 13))
             J7[:6, :12], J7[6, 12] = J, 1.0
             J = J7
-        C = J @ self.covariance_full[np.ix_(idx, idx)] @ J.T
+        full = self.covariance_full if self.covariance_systematic is None \
+            else self.covariance_systematic
+        C = J @ full[np.ix_(idx, idx)] @ J.T
         return X, 0.5 * (C + C.T)
 
     def with_scale(self, kind: str, i: int, board: int = 0) -> np.ndarray:
@@ -259,7 +264,7 @@ class _Groups:
     bias shared by an image's corners) — treating the robot's error as each camera's own would
     let it into the camera-to-camera transforms, where it cancels in truth."""
 
-    def __init__(self, blocks, shared: bool):
+    def __init__(self, blocks, shared: bool, min_moved: int = 2):
         members = {}
         for i, blk in enumerate(blocks):
             for k, g in enumerate(np.asarray(blk.instants, int)):
@@ -270,7 +275,7 @@ class _Groups:
         n = 0
         for gi, mem in enumerate(self.members):
             moved = [(i, k) for i, k in mem if _flange_side(blocks[i]) != 0]
-            if shared and len(moved) >= 2:
+            if shared and len(moved) >= min_moved:
                 self.delta[gi] = n
                 for i, k in moved:
                     self.index[i][k] = n
@@ -447,7 +452,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             pose_sigma0=None, estimate_noise: bool = True, robust: bool = True,
             max_rounds: int = 3, max_em: int = 10, variance_factors=None,
             covariance: bool = True, free_scale: bool = False, scales0=None,
-            shared_robot_error: bool = True, robot_sigma0=None) -> RigFit:
+            shared_robot_error: bool = True, robot_sigma0=None, robot_level=None) -> RigFit:
     """The joint corner-level fit (module docstring).
 
     Args:
@@ -467,6 +472,15 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
         shared_robot_error: images that the robot moves and that share an instant share one
             flange pose error δ (``_Groups``), its level (6, about and along E) estimated by EM
             from ``robot_sigma0``; False: each image's error is its own only.
+        robot_level: (deg, m) per axis of the robot's error that repeats over the recording
+            (a kinematic error: it follows the joint angles, so it does not average out as the
+            per-instant model assumes — ``calibration.corners.systematic_robot_level``). The
+            covariance is then that of a flange error of at least this level at every instant
+            the robot moves an image, marginalized (``RigFit.covariance_systematic``, used by
+            ``relative``): the camera-to-camera transforms' σ hold it — a robot error reaches
+            them through the instants only one camera sees. Each camera's own answer takes the
+            constant part instead (``pipeline.robot_error_covariance``, by the caller); the
+            estimate is not changed.
 
     Raises:
         ValueError: bad arguments, or data that do not determine every unknown (a camera whose
@@ -592,8 +606,21 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
                for i, b in enumerate(blocks)]
     w = _info(blocks, weights, sigma)
     inv_prior = [1.0 / p ** 2 for p in ps]
-    cov = _covariance(_systems(blocks, st, S, w, inv_prior, cols, G, groups, 1.0 / pd ** 2)[0]
-                      ) if covariance else None
+    cov = cov_sys = None
+    if covariance:
+        cov = _covariance(_systems(blocks, st, S, w, inv_prior, cols, G, groups,
+                                   1.0 / pd ** 2)[0])
+    if covariance and robot_level is not None:
+        every = _Groups(blocks, True, min_moved=1)
+        d = np.zeros((every.num_delta, 6))
+        for gi, n in enumerate(every.delta):
+            if n >= 0 and groups.delta[gi] >= 0:
+                d[n] = st.d[groups.delta[gi]]
+        level = np.maximum(pd, np.repeat([math.radians(float(robot_level[0])),
+                                          float(robot_level[1])], 3))
+        st_every = _RigState(st.X_c, st.X_b, st.v, st.e, st.s, d)
+        cov_sys = _covariance(_systems(blocks, st_every, S, w, inv_prior, cols, G, every,
+                                       1.0 / level ** 2)[0])
     results = []
     for i, blk in enumerate(blocks):
         d = blk.data
@@ -608,7 +635,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             np.sum(st.e[i] ** 2 / ps[i] ** 2, axis=1), st.e[i].copy(),
             float(math.sqrt(np.mean(n2[used]))) if used.any() else math.nan, r))
     return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total, list(st.s),
-                  pd if groups.num_delta else None, st.d.copy())
+                  pd if groups.num_delta else None, st.d.copy(), cov_sys)
 
 
 
