@@ -22,7 +22,8 @@ import numpy as np
 from ..estimation.reprojection import (INTRINSICS_MODELS, INTRINSICS_NAMES, LOO_MAX_IMAGES,
                                         POSE_SIGMA_FLOOR, CornerData, CornerFit,
                                         cross_validate, fit_corners, intrinsics_matrix,
-                                        intrinsics_vector, predict, select_intrinsics_model)
+                                        intrinsics_vector, predict, scale_midpoint,
+                                        select_intrinsics_model)
 from ..estimation.se3 import rotation_log
 from ..estimation.consistency import with_scaled_translations
 from .checks import Reason, Verdict, _quick_fit
@@ -581,19 +582,11 @@ def scale_readings(X_H, X_F, scale: float, covariance_full: np.ndarray):
     robot, answer, covs = [], [], []
     C = np.asarray(covariance_full)
     for i, X in ((0, X_H), (6, X_F)):
-        t = X[:3, 3]
-        X_B, X_M = X.copy(), X.copy()
-        X_B[:3, 3] = t / s
-        X_M[:3, 3] = 0.5 * (t + t / s)
+        idx = np.r_[np.arange(i, i + 6), C.shape[0] - 1]
+        X_B, X_M, C_M = scale_midpoint(X, C[np.ix_(idx, idx)], s)
         robot.append(X_B)
         answer.append(X_M)
-        # δm = ½(1 + 1/s) δt − t / (2 s²) δs; rotation unchanged.
-        J = np.zeros((6, C.shape[0]))
-        J[:3, i:i + 3] = np.eye(3)
-        J[3:, i + 3:i + 6] = 0.5 * (1.0 + 1.0 / s) * np.eye(3)
-        J[3:, -1] = -t / (2.0 * s * s)
-        d = np.concatenate([np.zeros(3), 0.5 * (t - t / s)])
-        covs.append(J @ C @ J.T + np.outer(d, d))
+        covs.append(C_M)
     out["robot"] = tuple(robot)
     out["answer"] = (answer[0], answer[1], covs[0], covs[1])
     return out

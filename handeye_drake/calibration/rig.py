@@ -49,7 +49,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from ..estimation.reprojection import CornerData, intrinsics_matrix, intrinsics_vector
+from ..estimation.reprojection import (CornerData, intrinsics_matrix, intrinsics_vector,
+                                       scale_midpoint)
 from ..estimation.rig_bundle import (MOUNTS, RigBlock, fit_rig, jackknife_factors,
                                      pose_error_frame, robot_side, tangent)
 from ..estimation.se3 import inverse
@@ -222,6 +223,9 @@ class CameraResult:
     agreement: dict = field(default_factory=dict)
     #: Factor (≥ 1) on the joint fit's covariance from the jackknife over instants.
     variance_factor: float = 1.0
+    #: With the board's scale s free: {"print": X as fitted (the board s× its declared size),
+    #: "robot": translation / s (the robot's translations s× long)}; ``X`` is their midpoint.
+    readings: dict = field(default_factory=dict)
     streams: object = field(default=None, repr=False)
     boards: dict = field(default_factory=dict)
     agreements: dict = field(default_factory=dict)
@@ -306,6 +310,12 @@ class RigResult:
     relative: dict = field(default_factory=dict)
     fit: object = None
     notes: list = field(default_factory=list)
+    #: Reasons of the rig as a whole (not of one camera): the board's scale.
+    reasons: list = field(default_factory=list)
+    #: The board's scale (true sizes / declared) found by the joint fit: {"factor", "std", "z",
+    #: "significant"} — the answers cover both readings (``_scale_readings``); {} with several
+    #: boards (their scales held at the declared ones).
+    board_scale: dict = field(default_factory=dict)
     boards: dict = field(default_factory=dict)
 
     def lines(self) -> list[str]:
@@ -339,6 +349,11 @@ class RigResult:
                     out.append(f"  {b.key} translation [{p[0]:+.5f} {p[1]:+.5f} {p[2]:+.5f}] m "
                                f"(σ {1000 * st[0]:.3f} {1000 * st[1]:.3f} {1000 * st[2]:.3f} "
                                f"mm), rotation σ {sr[0]:.4f} {sr[1]:.4f} {sr[2]:.4f}°")
+        if self.board_scale.get("factor") is not None:
+            b = self.board_scale
+            out.append(f"board scale {b['factor']:.5f} ± {b['std']:.2g} (true sizes / declared, "
+                       "or the robot's translations that × their true lengths; the answers "
+                       "cover both readings)")
         for (a, b), (X, C) in self.relative.items():
             d = np.sqrt(np.maximum(np.diag(C), 0.0))
             out.append(f"X_{a}_{b} (camera {b} in camera {a}): translation "
@@ -366,6 +381,8 @@ class RigResult:
                                          "model": c.intrinsics_model},
                           "pixel_rms_px": c.pixel_rms_px,
                           "jackknife_variance_factor": c.variance_factor})
+                if c.readings:
+                    d["readings"] = {k: v.tolist() for k, v in c.readings.items()}
             if c.alone is not None:
                 off = c.alone.time_offset
                 d["alone"] = {"verdict": c.alone.verdict.to_dict(),
@@ -377,7 +394,8 @@ class RigResult:
                         ("X_BT" if self.board_mount == "cell" else "X_ET"):
                         None if self.X_board is None else self.X_board.tolist(),
                         "board_covariance": None if self.board_covariance is None
-                        else self.board_covariance.tolist(), "notes": self.notes},
+                        else self.board_covariance.tolist(), "notes": self.notes,
+                        "board_scale": self.board_scale},
                 "boards": {n: b.to_dict() for n, b in self.boards.items()},
                 "cameras": {n: cam(c) for n, c in self.cameras.items()},
                 "relative": [{"from": a, "to": b, "X": X.tolist(), "covariance": C.tolist()}
@@ -581,6 +599,46 @@ def _rig_block(k: _Block, ci: int, bi: int) -> RigBlock:
                     k.fixed)
 
 
+def _scale_readings(fit, rig):
+    """The board's scale s found by the joint fit (free: a print off by a fraction of a percent
+    is the rule; the same pixels as the robot's translations s× long — the two readings of the
+    single-camera answer, ``corners._use_scale``): fills ``rig.board_scale`` and the rig's
+    reasons (WARN naming the factor beyond 0.2 % and 5σ, FAIL beyond 3 % or a unit factor) and
+    returns scale(X, C7) → (answer X, 6×6 covariance, readings) — the midpoint of the two
+    readings, its σ covering both."""
+    from .corners import SCALE_MIN_ERROR, SCALE_SIGMAS, SCALE_WARN_MAX, _unit_mistake
+    if ("scale", 0) not in fit.columns:
+        return lambda X, C: (X, C, {})
+    s, sd = float(fit.scales[0]), fit.scale_std(0)
+    z = (s - 1.0) / max(sd, 1e-12)
+    significant = abs(z) > SCALE_SIGMAS and abs(s - 1.0) > SCALE_MIN_ERROR
+    rig.board_scale = {"factor": s, "std": sd, "z": z, "significant": bool(significant),
+                       "meaning": "the board's true sizes are factor × those declared, or the "
+                                  "robot's translations are factor × their true lengths"}
+    unit = _unit_mistake(s)
+    if significant and (unit is not None or abs(s - 1.0) > SCALE_WARN_MAX):
+        what = f"the sizes look like {unit}" if unit is not None else \
+            f"{100 * abs(s - 1.0):.3g} % is beyond a print's or a robot's tolerance"
+        rig.reasons.append(Reason(
+            "FAIL", "target_size", f"the board's declared size is wrong: the cameras jointly say "
+            f"its sizes are {s:.4g}× those declared (± {sd:.2g}, {abs(z):.0f}σ from 1) — {what}; "
+            f"multiply the sizes of --target by {s:.4g} or measure the printed board"))
+    elif significant:
+        rig.reasons.append(Reason(
+            "WARN", "target_scale", f"the board's scale: the cameras jointly say its sizes are "
+            f"{s:.4g}× those declared (± {sd:.2g}, {abs(z):.0f}σ from 1) — a print "
+            f"{100 * abs(s - 1.0):.2g} % {'large' if s > 1 else 'small'}, or the robot's "
+            f"translations {s:.4g}× their true lengths: the pixels cannot tell the two apart; "
+            "every answer is the midpoint of the two readings (its σ covers both; "
+            "calibration.json holds each camera's readings) — measure the printed board's outer "
+            "corners to tell them apart"))
+
+    def scale(X, C):
+        X_robot, X_mid, C_mid = scale_midpoint(X, C, s)
+        return X_mid, C_mid, {"print": X.copy(), "robot": X_robot}
+    return scale
+
+
 def _block_times(k: _Block):
     """Robot-clock times (s) of a block's images, None when paired by index (or placed)."""
     if k.fixed:
@@ -592,7 +650,8 @@ def _block_times(k: _Block):
     return None if a.camera_times is None else np.asarray(a.camera_times, float) - a.time_offset
 
 
-def _joint(blocks, X_boards0: dict, factors: dict, covariance: bool = True):
+def _joint(blocks, X_boards0: dict, factors: dict, covariance: bool = True,
+           free_scale: bool = True):
     """``fit_rig`` of ``blocks`` (their cameras in order of first appearance, with ``X`` and
     ``intrinsics`` set; boards started at ``X_boards0`` {name: X}). Returns (fit, cameras,
     boards); ``fit.rig_blocks`` the RigBlocks with their variance factors."""
@@ -615,9 +674,19 @@ def _joint(blocks, X_boards0: dict, factors: dict, covariance: bool = True):
     px0 = [max(float(np.median([d.reprojection_rms_px for d in k.streams.detections])) /
                math.sqrt(2), 0.05) for k in blocks]
     f = [max(float(factors.get(k.cam.name, 1.0)), 1.0) for k in blocks]
+    # The robot error that repeats over the recording, as each camera's own calibration
+    # measured it (the largest): in the camera-to-camera transforms' σ (``fit_rig``).
+    levels = [k.alone.corners.robot_level for k in blocks
+              if k.alone is not None and k.alone.corners is not None
+              and k.alone.corners.robot_level]
+    level = None if not levels else (max(v["rotation_deg"] for v in levels),
+                                     max(v["translation_m"] for v in levels))
+    # One board: its scale is an unknown (``_scale_readings``); with several, held (each
+    # answer would need its own reading of every board's scale).
     fit = fit_rig(rb, [c.X for c in cams], [X_boards0[b.name] for b in boards],
                   [c.intrinsics for c in cams], [c.intrinsics_model for c in cams], px0, None,
-                  variance_factors=f, covariance=covariance)
+                  variance_factors=f, covariance=covariance,
+                  free_scale=free_scale and len(boards) == 1, robot_level=level)
     fit.rig_blocks = [dataclasses.replace(b, variance_factor=v) for b, v in zip(rb, f)]
     return fit, cams, boards
 
@@ -974,7 +1043,8 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
         own = [o for o in rest if o.cam is k.cam]
         rest += [o for o in placed if (o.cam is not k.cam or own) and o.board.name in X_b0]
         try:
-            f, _, bs = _joint(rest, X_b0, factors)
+            # At the declared scale: a print's scale moves every camera's board alike.
+            f, _, bs = _joint(rest, X_b0, factors, free_scale=False)
         except ValueError:
             continue
         bi = bs.index(k.board)
@@ -1086,6 +1156,7 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
             cams, bs = [], []
         else:
             rig.fit = fit
+            scale = _scale_readings(fit, rig)
             pairs = [(i, j) for i in range(len(cams)) for j in range(i + 1, len(cams))
                      if cams[j].mount == cams[i].mount]
             # What the corners' noise model misses shows in how the answers move when each
@@ -1103,9 +1174,9 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                     widened) if widened else "σ checked by a delete-one-instant jackknife: not "
                     "widened")
             for i, c in enumerate(cams):
-                c.X = fit.X_cameras[i]
                 c.variance_factor = jack.get(("camera", i), 1.0)
-                c.covariance = fit.camera_covariance(i) * c.variance_factor
+                c.X, c.covariance, c.readings = scale(
+                    fit.X_cameras[i], fit.with_scale("camera", i) * c.variance_factor)
                 if options.robot_accuracy is not None:
                     # As the single-camera answer: the robot's pose error, constant over the
                     # recording, moves every camera's answer — a moving camera's about the
@@ -1123,18 +1194,17 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
             for i, b in enumerate(bs):
                 br = board_results[b.name]
                 br.variance_factor = jack.get(("board", i), 1.0)
-                br.X = fit.X_boards[i]
-                br.covariance = fit.board_covariance(i) * br.variance_factor + \
-                    _board_pose_error_term(fit, i)
+                br.X, C_b, _ = scale(fit.X_boards[i], fit.with_scale("board", i, i))
+                br.covariance = C_b * br.variance_factor + _board_pose_error_term(fit, i)
                 if options.robot_accuracy is not None:
                     # As for the cameras: the robot's absolute accuracy moves the board's pose
                     # as the images place it (not averaged over them: it repeats).
                     br.covariance = br.covariance + _board_pose_error_term(
                         fit, i, options.robot_accuracy)
             for i, j in pairs:
-                X, C = fit.relative(i, j)
-                rig.relative[(cams[i].name, cams[j].name)] = (X, C * jack.get(("pair", i, j),
-                                                                               1.0))
+                X, C = fit.relative(i, j, board=0)
+                rig.relative[(cams[i].name, cams[j].name)] = scale(
+                    X, C * jack.get(("pair", i, j), 1.0))[:2]
     for c in results.values():
         if c not in cams:
             c.X, c.covariance = None, None
@@ -1143,6 +1213,8 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
     reasons = [Reason(r.level, r.code, r.message) for c in results.values()
                for r in c.verdict.reasons if r.level == "FAIL"]
     warns = [r for c in results.values() for r in c.verdict.reasons if r.level == "WARN"]
+    reasons += [r for r in rig.reasons if r.level == "FAIL"]
+    warns += [r for r in rig.reasons if r.level == "WARN"]
     failed = [n for n, c in results.items() if c.verdict.status == "FAIL"]
     failed_boards = [] if single else [n for n, b in board_results.items()
                                        if b.verdict.status == "FAIL"]
@@ -1159,6 +1231,9 @@ def calibrate_rig(cameras, robot, target=None, board_mount: str = "cell", option
                            f"{', '.join(failed_boards)} FAIL"
                            f"{'' if len(failed_boards) > 1 else 's'}: " + "; ".join(msgs)))
         reasons += [r for n in failed_boards for r in board_results[n].verdict.reasons]
+    if any(r.level == "FAIL" for r in rig.reasons):
+        head += [r for r in rig.reasons if r.level == "FAIL"]
+        reasons = [r for r in reasons if r not in rig.reasons]
     if head:
         rig.verdict = Verdict("FAIL", head + reasons)
     else:

@@ -788,6 +788,31 @@ def point_sigma(covariance, p_H) -> float:
     return float(math.sqrt(max(np.trace(C), 0.0)))
 
 
+
+def scale_midpoint(X: np.ndarray, covariance: np.ndarray, scale: float):
+    """The two readings of a pose X fitted with a target scale s ≠ 1 and the answer that covers
+    both. "The print is s× its declared size": X as fitted; "the robot's translations are s×
+    their true lengths": the same rotation, the translation divided by s (the whole cell scaled
+    by 1/s shows the same pixels). The answer: the midpoint of the translations, with covariance
+    the propagated one plus ¼ (t_A − t_B)(t_A − t_B)ᵀ (a 50/50 mixture: each reading 1σ from the
+    answer along their difference).
+
+    ``covariance``: 7×7 of [δθ; δt; δs] (R = exp(δθ) R̂). Returns (X_robot, X_answer, C_answer
+    6×6)."""
+    s = float(scale)
+    t = X[:3, 3]
+    X_robot, X_mid = X.copy(), X.copy()
+    X_robot[:3, 3] = t / s
+    X_mid[:3, 3] = 0.5 * (t + t / s)
+    # δm = ½(1 + 1/s) δt − t / (2 s²) δs; rotation unchanged.
+    J = np.zeros((6, 7))
+    J[:3, :3] = np.eye(3)
+    J[3:, 3:6] = 0.5 * (1.0 + 1.0 / s) * np.eye(3)
+    J[3:, 6] = -t / (2.0 * s * s)
+    d = np.concatenate([np.zeros(3), 0.5 * (t - t / s)])
+    C = J @ np.asarray(covariance, float) @ J.T + np.outer(d, d)
+    return X_robot, X_mid, 0.5 * (C + C.T)
+
 __all__ = ["CornerData", "CornerFit", "INTRINSICS_MODELS", "INTRINSICS_NAMES",
            "cross_validate", "fit_corners", "intrinsics_matrix", "intrinsics_vector",
-           "point_sigma", "predict", "project", "select_intrinsics_model"]
+           "point_sigma", "predict", "scale_midpoint", "project", "select_intrinsics_model"]

@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .reprojection import (CORNER_OUTLIER_CHI2, EM_RELAXATION, HUBER_K, IMAGE_OUTLIER_CHI2,
                            MAD_SCALE, PIXEL_SIGMA_FLOOR, POSE_SIGMA_FLOOR, CornerData, _State,
@@ -110,6 +111,20 @@ class RigFit:
     columns: dict
     blocks: list
     iterations: int = 0
+    #: Per board its scale (true sizes / declared: 1 unless ``fit_rig(free_scale=True)``).
+    scales: list = None
+    #: The shared robot error's level (6: rad, m about and along E; None without shared
+    #: instants) and its value per shared instant.
+    robot_sigma: np.ndarray = None
+    robot_errors: np.ndarray = None
+    #: The covariance with the robot's repeating error marginalized at every instant
+    #: (``fit_rig(robot_level=…)``), the camera-to-camera transforms'; None without.
+    covariance_systematic: np.ndarray = None
+
+    def scale_std(self, b: int) -> float:
+        s = self.columns.get(("scale", b))
+        return 0.0 if s is None else math.sqrt(max(float(self.covariance_full[s, s][0, 0]),
+                                                    0.0))
 
     def camera_covariance(self, c: int) -> np.ndarray:
         s = self.columns[("camera", c)]
@@ -124,9 +139,11 @@ class RigFit:
         s = self.columns[("intrinsics", c)]
         return S @ self.covariance_full[s, s] @ S.T
 
-    def relative(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    def relative(self, a: int, b: int, board: int | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """X_{C_a C_b} = X_a⁻¹ X_b (meaningful for two cameras on one mount) and its 6×6
-        covariance [δθ; δt] (R = exp(δθ) R̂), from the joint covariance of X_a and X_b."""
+        covariance [δθ; δt] (R = exp(δθ) R̂), from the joint covariance of X_a and X_b; with
+        ``board`` and its scale free, 7×7 of [δθ; δt; δs_board] (``with_scale``)."""
         Xa, Xb = self.X_cameras[a], self.X_cameras[b]
         X = inverse(Xa) @ Xb
         J = np.zeros((6, 12))
@@ -140,8 +157,24 @@ class RigFit:
                        ) / (2 * h)
         sa, sb = self.columns[("camera", a)], self.columns[("camera", b)]
         idx = np.r_[np.arange(sa.start, sa.stop), np.arange(sb.start, sb.stop)]
-        C = J @ self.covariance_full[np.ix_(idx, idx)] @ J.T
+        if board is not None and ("scale", board) in self.columns:
+            idx = np.r_[idx, self.columns[("scale", board)].start]
+            J7 = np.zeros((7, 13))
+            J7[:6, :12], J7[6, 12] = J, 1.0
+            J = J7
+        full = self.covariance_full if self.covariance_systematic is None \
+            else self.covariance_systematic
+        C = J @ full[np.ix_(idx, idx)] @ J.T
         return X, 0.5 * (C + C.T)
+
+    def with_scale(self, kind: str, i: int, board: int = 0) -> np.ndarray:
+        """Covariance of [δθ; δt] of camera or board ``i`` (``kind`` "camera" | "board") and the
+        scale of ``board`` (7×7; 6×6 when the scale was held)."""
+        s = self.columns[(kind, i)]
+        idx = np.arange(s.start, s.stop)
+        if ("scale", board) in self.columns:
+            idx = np.r_[idx, self.columns[("scale", board)].start]
+        return self.covariance_full[np.ix_(idx, idx)].copy()
 
 
 def _perturb(X, d):
@@ -156,7 +189,7 @@ def tangent(X1, X2) -> np.ndarray:
     return np.concatenate([rotation_log(X1[:3, :3] @ X2[:3, :3].T), X1[:3, 3] - X2[:3, 3]])
 
 
-def _columns(num_cameras, num_boards, S):
+def _columns(num_cameras, num_boards, S, free_scale=False):
     cols, n = {}, 0
     for c in range(num_cameras):
         cols[("camera", c)] = slice(n, n + 6)
@@ -168,29 +201,45 @@ def _columns(num_cameras, num_boards, S):
         m = S[c].shape[1]
         cols[("intrinsics", c)] = slice(n, n + m)
         n += m
+    if free_scale:
+        for b in range(num_boards):
+            cols[("scale", b)] = slice(n, n + 1)
+            n += 1
     return cols, n
 
 
 def _block_columns(blk, cols):
     c, b = blk.camera, blk.board
-    return np.r_[np.arange(cols[("camera", c)].start, cols[("camera", c)].stop),
-                 np.arange(cols[("board", b)].start, cols[("board", b)].stop),
-                 np.arange(cols[("intrinsics", c)].start, cols[("intrinsics", c)].stop)]
+    out = np.r_[np.arange(cols[("camera", c)].start, cols[("camera", c)].stop),
+                np.arange(cols[("board", b)].start, cols[("board", b)].stop),
+                np.arange(cols[("intrinsics", c)].start, cols[("intrinsics", c)].stop)]
+    if ("scale", b) in cols:   # ``_linearize``'s scale column comes last
+        out = np.r_[out, cols[("scale", b)].start]
+    return out
 
 
 class _RigState:
-    def __init__(self, X_cameras, X_boards, v, e):
+    def __init__(self, X_cameras, X_boards, v, e, scales=None, d=None):
         self.X_c = [np.asarray(X, float).copy() for X in X_cameras]
         self.X_b = [np.asarray(X, float).copy() for X in X_boards]
         self.v = [np.asarray(x, float).copy() for x in v]
         self.e = [np.asarray(x, float).copy() for x in e]
+        self.s = [1.0] * len(self.X_b) if scales is None else [float(x) for x in scales]
+        #: (groups with a shared robot error, 6): the flange's pose error at those instants.
+        self.d = np.zeros((0, 6)) if d is None else np.asarray(d, float).copy()
 
     def block(self, i, blk) -> _State:
-        return _State(self.X_c[blk.camera], self.X_b[blk.board], self.v[blk.camera], 1.0,
-                      self.e[i])
+        return _State(self.X_c[blk.camera], self.X_b[blk.board], self.v[blk.camera],
+                      self.s[blk.board], self.e[i])
 
-    def retract(self, dg, de, cols, S) -> "_RigState":
-        new = _RigState(self.X_c, self.X_b, self.v, [e + d for e, d in zip(self.e, de)])
+    def retract(self, dg, de, dd, cols, S) -> "_RigState":
+        new = _RigState(self.X_c, self.X_b, self.v, [e + d for e, d in zip(self.e, de)],
+                        self.s, self.d + dd)
+        for b in range(len(new.s)):
+            if ("scale", b) in cols:
+                new.s[b] = new.s[b] + float(dg[cols[("scale", b)]][0])
+                if not new.s[b] > 0.0:
+                    raise ValueError("board scale left (0, ∞)")
         for c in range(len(new.X_c)):
             new.X_c[c] = _perturb(new.X_c[c], dg[cols[("camera", c)]])
             new.v[c] = new.v[c] + S[c] @ dg[cols[("intrinsics", c)]]
@@ -199,35 +248,145 @@ class _RigState:
         return new
 
 
-def _cost(blocks, st, S, w, inv_prior):
-    total = 0.0
+def _flange_side(blk) -> int:
+    """How the flange's pose error δ (X_BE,true = X_BE · T(δ), about and along E) enters a
+    block's X_R: +1 X_R = X_BE (a camera on the hand), −1 X_R = X_EB (a board on the hand seen
+    from the cell), 0 none (a fixed view)."""
+    if blk.fixed_view:
+        return 0
+    return -1 if blk.frame == "target" else 1
+
+
+class _Groups:
+    """The images of every block grouped by instant. Where two or more images that the robot
+    moves (not fixed views) share an instant, they share the robot's pose error there: one δ
+    (6, in E) for them all, besides each image's own error e (a camera's shake, a detector's
+    bias shared by an image's corners) — treating the robot's error as each camera's own would
+    let it into the camera-to-camera transforms, where it cancels in truth."""
+
+    def __init__(self, blocks, shared: bool, min_moved: int = 2):
+        members = {}
+        for i, blk in enumerate(blocks):
+            for k, g in enumerate(np.asarray(blk.instants, int)):
+                members.setdefault(int(g), []).append((i, k))
+        self.members = [members[g] for g in sorted(members)]
+        self.delta = [-1] * len(self.members)
+        self.index = [np.full(b.data.num_images, -1) for b in blocks]
+        n = 0
+        for gi, mem in enumerate(self.members):
+            moved = [(i, k) for i, k in mem if _flange_side(blocks[i]) != 0]
+            if shared and len(moved) >= min_moved:
+                self.delta[gi] = n
+                for i, k in moved:
+                    self.index[i][k] = n
+                n += 1
+        self.num_delta = n
+
+
+def _T(d) -> np.ndarray:
+    d = np.atleast_2d(d)
+    T = np.repeat(np.eye(4)[None], len(d), axis=0)
+    T[:, :3, :3] = Rotation.from_rotvec(d[:, :3]).as_matrix()
+    T[:, :3, 3] = d[:, 3:]
+    return T
+
+
+def _effective(blk, idx, d, extra=None) -> CornerData:
+    """The block's data with the shared flange errors d applied to X_R (images idx ≥ 0)."""
+    side = _flange_side(blk)
+    sel = idx >= 0
+    if side == 0 or not sel.any():
+        return blk.data
+    D = d[idx[sel]] if extra is None else d[idx[sel]] + extra
+    T = _T(D)
+    X = blk.data.X_R.copy()
+    X[sel] = X[sel] @ T if side > 0 else np.linalg.inv(T) @ X[sel]
+    return CornerData(X, blk.data.image, blk.data.object_points, blk.data.image_points)
+
+
+def _residuals(blocks, st, S, groups, i, blk):
+    data = _effective(blk, groups.index[i], st.d)
+    return _linearize(data, st.block(i, blk), S[blk.camera], False, False, blk.frame)[0]
+
+
+def _cost(blocks, st, S, w, inv_prior, groups, inv_prior_d):
+    total = float(np.sum(st.d ** 2 * inv_prior_d))
     for i, blk in enumerate(blocks):
-        r = _linearize(blk.data, st.block(i, blk), S[blk.camera], False, False, blk.frame)[0]
+        r = _residuals(blocks, st, S, groups, i, blk)
         total += float(np.sum(w[i][:, None] * r ** 2) + np.sum(st.e[i] ** 2 * inv_prior[i]))
     return total
 
 
-def _systems(blocks, st, S, w, inv_prior, cols, G):
-    """Per block the QR of each image's whitened system; returns (global root rows, rhs, per
-    block (R_ee, R_eg, c_e, block columns), residuals, J_e)."""
-    roots, rhs, parts, res, jes = [], [], [], [], []
+def _delta_jacobian(blk, st, S, groups, i, h=1e-6) -> np.ndarray:
+    """(N, 2, 6) ∂ predicted pixels / ∂ δ (central differences; zeros where no δ)."""
+    idx = groups.index[i]
+    n = len(blk.data.image)
+    J = np.zeros((n, 2, 6))
+    if _flange_side(blk) == 0 or not np.any(idx >= 0):
+        return J
+    stb = st.block(i, blk)
+    for a in range(6):
+        e = np.zeros(6)
+        e[a] = h
+        rp = _linearize(_effective(blk, idx, st.d, e), stb, S[blk.camera], False, False,
+                        blk.frame)[0]
+        rm = _linearize(_effective(blk, idx, st.d, -e), stb, S[blk.camera], False, False,
+                        blk.frame)[0]
+        J[:, :, a] = (rp - rm) / (2 * h)
+    J[idx[blk.data.image] < 0] = 0.0
+    return J
+
+
+def _systems(blocks, st, S, w, inv_prior, cols, G, groups, inv_prior_d):
+    """Per instant the QR of its images' whitened system (every block's image at that instant,
+    their own pose errors e and, where shared, the robot's δ eliminated); returns (global root
+    rows, rhs, per group (R_nn, R_ng, c_n, layout), residuals, J_e, J_δ per block)."""
+    res, jes, jgs, jds, starts, bcs = [], [], [], [], [], []
     for i, blk in enumerate(blocks):
         d = blk.data
-        r, J_g, J_e = _linearize(d, st.block(i, blk), S[blk.camera], False, True, blk.frame)
-        Gb = J_g.shape[2]
-        starts = np.searchsorted(d.image, np.arange(d.num_images))
-        A, b = _image_systems(d, J_g, J_e, r, st.e[i], w[i], inv_prior[i], starts)
-        R_aug = np.linalg.qr(np.concatenate([A, b[..., None]], axis=2), mode="r")
-        R, c = R_aug[:, :6 + Gb, :6 + Gb], R_aug[:, :6 + Gb, 6 + Gb]
-        bc = _block_columns(blk, cols)
-        root = np.zeros((d.num_images * Gb, G))
-        root[:, bc] = R[:, 6:, 6:].reshape(-1, Gb)
-        roots.append(root)
-        rhs.append(-c[:, 6:].reshape(-1))
-        parts.append((R[:, :6, :6], R[:, :6, 6:], c[:, :6], bc))
+        data = _effective(blk, groups.index[i], st.d)
+        r, J_g, J_e = _linearize(data, st.block(i, blk), S[blk.camera],
+                                 ("scale", blk.board) in cols, True, blk.frame)
         res.append(r)
         jes.append(J_e)
-    return np.vstack(roots), np.concatenate(rhs), parts, res, jes
+        jgs.append(J_g)
+        jds.append(_delta_jacobian(blk, st, S, groups, i))
+        starts.append(np.searchsorted(d.image, np.arange(d.num_images + 1)))
+        bcs.append(_block_columns(blk, cols))
+    roots, rhs, parts = [], [], []
+    for gi, mem in enumerate(groups.members):
+        nd = 6 if groups.delta[gi] >= 0 else 0
+        nn = nd + 6 * len(mem)
+        n_rows = sum(2 * (starts[i][k + 1] - starts[i][k]) for i, k in mem) + nn
+        A = np.zeros((max(n_rows, nn + G + 1), nn + G))
+        b = np.zeros(A.shape[0])
+        row = 0
+        for m, (i, k) in enumerate(mem):
+            sl = slice(starts[i][k], starts[i][k + 1])
+            sw = np.sqrt(w[i][sl])
+            n = sl.stop - sl.start
+            for a in range(2):
+                rr = slice(row + a, row + 2 * n, 2)
+                A[rr, nd + 6 * m:nd + 6 * m + 6] = sw[:, None] * jes[i][sl, a]
+                if nd and groups.index[i][k] >= 0:
+                    A[rr, :6] = sw[:, None] * jds[i][sl, a]
+                A[rr, nn + bcs[i]] = sw[:, None] * jgs[i][sl, a]
+                b[rr] = sw * res[i][sl, a]
+            row += 2 * n
+            q = np.sqrt(inv_prior[i])
+            A[row:row + 6, nd + 6 * m:nd + 6 * m + 6] = np.diag(q)
+            b[row:row + 6] = st.e[i][k] * q
+            row += 6
+        if nd:
+            q = np.sqrt(inv_prior_d)
+            A[row:row + 6, :6] = np.diag(q)
+            b[row:row + 6] = st.d[groups.delta[gi]] * q
+        R_aug = np.linalg.qr(np.column_stack([A, b]), mode="r")
+        R, c = R_aug[:nn + G, :nn + G], R_aug[:nn + G, nn + G]
+        roots.append(R[nn:, nn:])
+        rhs.append(-c[nn:])
+        parts.append((R[:nn, :nn], R[:nn, nn:], c[:nn], nd, mem))
+    return np.vstack(roots), np.concatenate(rhs), parts, res, jes, jds
 
 
 def _info(blocks, weights, sigma):
@@ -243,22 +402,35 @@ def _info(blocks, weights, sigma):
     return out
 
 
-def _solve(blocks, st, S, cols, G, sigma, ps, weights, max_iter=30, tol=1e-10):
+def _nuisance_step(parts, dg, blocks, groups):
+    de = [np.zeros((b.data.num_images, 6)) for b in blocks]
+    dd = np.zeros((groups.num_delta, 6))
+    for gi, (R_nn, R_ng, c_n, nd, mem) in enumerate(parts):
+        x = np.linalg.solve(R_nn, -c_n - R_ng @ dg)
+        if nd:
+            dd[groups.delta[gi]] = x[:6]
+        for m, (i, k) in enumerate(mem):
+            de[i][k] = x[nd + 6 * m:nd + 6 * m + 6]
+    return de, dd
+
+
+def _solve(blocks, st, S, cols, G, sigma, ps, weights, groups, pd, max_iter=30, tol=1e-10):
     w = _info(blocks, weights, sigma)
     inv_prior = [1.0 / p ** 2 for p in ps]
-    cost = _cost(blocks, st, S, w, inv_prior)
+    inv_prior_d = 1.0 / pd ** 2
+    cost = _cost(blocks, st, S, w, inv_prior, groups, inv_prior_d)
     lam, small, it = 1e-6, 0, 0
     for it in range(1, max_iter + 1):
-        root, rhs, parts, _, _ = _systems(blocks, st, S, w, inv_prior, cols, G)
+        root, rhs, parts, *_ = _systems(blocks, st, S, w, inv_prior, cols, G, groups,
+                                        inv_prior_d)
         scale = np.maximum(np.linalg.norm(root, axis=0), 1e-300)
         while True:
             M = np.vstack([root / scale, math.sqrt(lam) * np.eye(G)])
             dg = np.linalg.lstsq(M, np.concatenate([rhs, np.zeros(G)]), rcond=None)[0] / scale
-            de = [np.linalg.solve(R_ee, (-c_e - np.einsum("kij,j->ki", R_eg, dg[bc]))[..., None]
-                                  )[..., 0] for R_ee, R_eg, c_e, bc in parts]
+            de, dd = _nuisance_step(parts, dg, blocks, groups)
             try:
-                new = st.retract(dg, de, cols, S)
-                new_cost = _cost(blocks, new, S, w, inv_prior)
+                new = st.retract(dg, de, dd, cols, S)
+                new_cost = _cost(blocks, new, S, w, inv_prior, groups, inv_prior_d)
             except ValueError:
                 new_cost = math.inf
             if np.isfinite(new_cost) and new_cost <= cost:
@@ -273,13 +445,14 @@ def _solve(blocks, st, S, cols, G, sigma, ps, weights, max_iter=30, tol=1e-10):
         small = small + 1 if decrease <= tol * max(cost, 1.0) else 0
         if small >= 2 or lam > 1e6:
             break
-    return st, it, w, inv_prior
+    return st, it, w, inv_prior, inv_prior_d
 
 
 def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma0=None,
             pose_sigma0=None, estimate_noise: bool = True, robust: bool = True,
             max_rounds: int = 3, max_em: int = 10, variance_factors=None,
-            covariance: bool = True) -> RigFit:
+            covariance: bool = True, free_scale: bool = False, scales0=None,
+            shared_robot_error: bool = True, robot_sigma0=None, robot_level=None) -> RigFit:
     """The joint corner-level fit (module docstring).
 
     Args:
@@ -293,6 +466,21 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             model says).
         covariance: False skips the covariance (``covariance_full`` None: a refit whose
             answer alone is wanted, e.g. the jackknife's).
+        free_scale: each board's scale s (true sizes / declared) is an unknown too (a print a
+            fraction of a percent off; the same pixels as the robot's translations s× long).
+        scales0: per board the scale's start (and value held without ``free_scale``).
+        shared_robot_error: images that the robot moves and that share an instant share one
+            flange pose error δ (``_Groups``), its level (6, about and along E) estimated by EM
+            from ``robot_sigma0``; False: each image's error is its own only.
+        robot_level: (deg, m) per axis of the robot's error that repeats over the recording
+            (a kinematic error: it follows the joint angles, so it does not average out as the
+            per-instant model assumes — ``calibration.corners.systematic_robot_level``). The
+            covariance is then that of a flange error of at least this level at every instant
+            the robot moves an image, marginalized (``RigFit.covariance_systematic``, used by
+            ``relative``): the camera-to-camera transforms' σ hold it — a robot error reaches
+            them through the instants only one camera sees. Each camera's own answer takes the
+            constant part instead (``pipeline.robot_error_covariance``, by the caller); the
+            estimate is not changed.
 
     Raises:
         ValueError: bad arguments, or data that do not determine every unknown (a camera whose
@@ -313,7 +501,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             raise ValueError(f"fit_rig: camera {blk.camera} has {blk.data.num_images} images "
                              "of board {blk.board}; ≥ 3 needed")
     S = [_selection(m, v) for m, v in zip(models, v0)]
-    cols, G = _columns(nc, nb, S)
+    cols, G = _columns(nc, nb, S, free_scale)
     nbk = len(blocks)
     factors = [max(float(f), 1.0) for f in (variance_factors or [1.0] * nbk)]
     blocks = [dataclasses.replace(b, variance_factor=f) for b, f in zip(blocks, factors)]
@@ -321,7 +509,11 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
     floor = np.repeat(POSE_SIGMA_FLOOR, 3)
     ps = [np.maximum(np.asarray(p if p is not None else [1e-3] * 6, float), floor)
           for p in (pose_sigma0 or [None] * nbk)]
-    st = _RigState(X_cameras0, X_boards0, v0, [np.zeros((b.data.num_images, 6)) for b in blocks])
+    groups = _Groups(blocks, shared_robot_error)
+    pd = np.maximum(np.asarray(robot_sigma0 if robot_sigma0 is not None else [1e-3] * 6,
+                               float), floor)
+    st = _RigState(X_cameras0, X_boards0, v0, [np.zeros((b.data.num_images, 6)) for b in blocks],
+                   scales0, np.zeros((groups.num_delta, 6)))
     corner_ok = [np.ones(len(b.data.image), bool) for b in blocks]
     image_ok = [np.ones(b.data.num_images, bool) for b in blocks]
     total = 0
@@ -333,39 +525,62 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             for i, blk in enumerate(blocks):
                 wt = (corner_ok[i] & image_ok[i][blk.data.image]).astype(float)
                 if huber:
-                    r = _linearize(blk.data, st.block(i, blk), S[blk.camera], False, False,
-                                   blk.frame)[0]
+                    r = _residuals(blocks, st, S, groups, i, blk)
                     norm = np.linalg.norm(r, axis=1) / sigma[i]
                     wt = wt * np.minimum(1.0, HUBER_K / np.maximum(norm, 1e-12))
                 weights.append(wt)
-            st, it, w, inv_prior = _solve(blocks, st, S, cols, G, sigma, ps, weights,
-                                          max_iter=30 if em == 0 else 4)
+            st, it, w, inv_prior, inv_prior_d = _solve(blocks, st, S, cols, G, sigma, ps,
+                                                       weights, groups, pd,
+                                                       max_iter=30 if em == 0 else 4)
             total += it
             if not estimate_noise:
                 break
-            _, _, parts, res, jes = _systems(blocks, st, S, w, inv_prior, cols, G)
+            _, _, parts, res, jes, jds = _systems(blocks, st, S, w, inv_prior, cols, G,
+                                                  groups, inv_prior_d)
+            # Posterior covariances of each image's own error (P_e), of the shared δ (P_d) and
+            # the pixel variance they explain per corner (lever, in σ² units).
+            P_e = [np.zeros((b.data.num_images, 6, 6)) for b in blocks]
+            lever = [np.zeros(len(b.data.image)) for b in blocks]
+            P_d = np.zeros((groups.num_delta, 6, 6))
+            for gi, (R_nn, _, _, nd, mem) in enumerate(parts):
+                Ri = np.linalg.inv(R_nn)
+                P = Ri @ Ri.T
+                if nd:
+                    P_d[groups.delta[gi]] = P[:6, :6]
+                for m, (i, k) in enumerate(mem):
+                    e_sl = slice(nd + 6 * m, nd + 6 * m + 6)
+                    P_e[i][k] = P[e_sl, e_sl]
+                    c_sl = slice(*np.searchsorted(blocks[i].data.image, [k, k + 1]))
+                    if nd and groups.index[i][k] >= 0:
+                        idx = np.r_[0:6, e_sl.start:e_sl.stop]
+                        J = np.concatenate([jds[i][c_sl], jes[i][c_sl]], axis=2)
+                        Pm = P[np.ix_(idx, idx)]
+                    else:
+                        J, Pm = jes[i][c_sl], P[e_sl, e_sl]
+                    lever[i][c_sl] = np.einsum("nai,ij,naj->n", J, Pm, J) / sigma[i] ** 2
             change = 0.0
             for i, blk in enumerate(blocks):
-                R_ee = parts[i][0]
-                Ri = np.linalg.inv(R_ee)
-                P_e = Ri @ np.swapaxes(Ri, 1, 2)
-                wt, r, J_e, d = weights[i], res[i], jes[i], blk.data
+                wt, r = weights[i], res[i]
                 use = wt > 0
-                lever = np.einsum("nai,nij,naj->n", J_e, P_e[d.image], J_e) / sigma[i] ** 2
                 new_sigma = math.sqrt(max(
                     (np.sum(wt[use][:, None] * r[use] ** 2) + sigma[i] ** 2 * np.sum(
-                        (wt * lever)[use])) / max(2.0 * np.sum(use), 1.0),
+                        (wt * lever[i])[use])) / max(2.0 * np.sum(use), 1.0),
                     PIXEL_SIGMA_FLOOR ** 2))
                 ok = image_ok[i]
                 n_ok = int(ok.sum())
-                Gb = 12 + S[blk.camera].shape[1]
+                Gb = 12 + S[blk.camera].shape[1] + int(free_scale)
                 reml = n_ok / max(n_ok - Gb / 6.0, 1.0)
                 new_ps = np.sqrt(np.maximum(reml * np.mean(st.e[i][ok] ** 2 + np.diagonal(
-                    P_e[ok], axis1=1, axis2=2), axis=0), floor ** 2))
+                    P_e[i][ok], axis1=1, axis2=2), axis=0), floor ** 2))
                 change = max(change, abs(new_sigma / sigma[i] - 1),
                              float(np.max(np.abs(new_ps / ps[i] - 1))))
                 sigma[i] = new_sigma
                 ps[i] = np.maximum(ps[i] * (new_ps / ps[i]) ** EM_RELAXATION, floor)
+            if groups.num_delta:
+                new_pd = np.sqrt(np.maximum(np.mean(st.d ** 2 + np.diagonal(
+                    P_d, axis1=1, axis2=2), axis=0), floor ** 2))
+                change = max(change, float(np.max(np.abs(new_pd / pd - 1))))
+                pd = np.maximum(pd * (new_pd / pd) ** EM_RELAXATION, floor)
             if change < 0.02:
                 break
         if not robust or rnd == rounds - 1:
@@ -373,7 +588,7 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
         same = not huber
         for i, blk in enumerate(blocks):
             d = blk.data
-            r = _linearize(d, st.block(i, blk), S[blk.camera], False, False, blk.frame)[0]
+            r = _residuals(blocks, st, S, groups, i, blk)
             new_corner = np.sum(r ** 2, axis=1) / sigma[i] ** 2 <= CORNER_OUTLIER_CHI2
             robust_level = MAD_SCALE * np.median(np.abs(st.e[i][image_ok[i]]), axis=0) \
                 * math.sqrt(1.0 + 3.0 / max(int(image_ok[i].sum()), 1))
@@ -391,11 +606,25 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
                for i, b in enumerate(blocks)]
     w = _info(blocks, weights, sigma)
     inv_prior = [1.0 / p ** 2 for p in ps]
-    cov = _covariance(_systems(blocks, st, S, w, inv_prior, cols, G)[0]) if covariance else None
+    cov = cov_sys = None
+    if covariance:
+        cov = _covariance(_systems(blocks, st, S, w, inv_prior, cols, G, groups,
+                                   1.0 / pd ** 2)[0])
+    if covariance and robot_level is not None:
+        every = _Groups(blocks, True, min_moved=1)
+        d = np.zeros((every.num_delta, 6))
+        for gi, n in enumerate(every.delta):
+            if n >= 0 and groups.delta[gi] >= 0:
+                d[n] = st.d[groups.delta[gi]]
+        level = np.maximum(pd, np.repeat([math.radians(float(robot_level[0])),
+                                          float(robot_level[1])], 3))
+        st_every = _RigState(st.X_c, st.X_b, st.v, st.e, st.s, d)
+        cov_sys = _covariance(_systems(blocks, st_every, S, w, inv_prior, cols, G, every,
+                                       1.0 / level ** 2)[0])
     results = []
     for i, blk in enumerate(blocks):
         d = blk.data
-        r = -_linearize(d, st.block(i, blk), S[blk.camera], False, False, blk.frame)[0]
+        r = -_residuals(blocks, st, S, groups, i, blk)
         used = weights[i] > 0
         n2 = np.sum(r ** 2, axis=1)
         K = d.num_images
@@ -405,7 +634,8 @@ def fit_rig(blocks, X_cameras0, X_boards0, intrinsics0, models=None, pixel_sigma
             sigma[i], ps[i], corner_ok[i], image_ok[i], img_rms,
             np.sum(st.e[i] ** 2 / ps[i] ** 2, axis=1), st.e[i].copy(),
             float(math.sqrt(np.mean(n2[used]))) if used.any() else math.nan, r))
-    return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total)
+    return RigFit(st.X_c, st.X_b, st.v, models, cov, cols, results, total, list(st.s),
+                  pd if groups.num_delta else None, st.d.copy(), cov_sys)
 
 
 
@@ -433,7 +663,9 @@ def jackknife_factors(blocks, fit: RigFit, pairs=()) -> dict:
                             [r.pixel_sigma for r in fit.blocks],
                             [r.pose_sigma for r in fit.blocks], estimate_noise=False,
                             robust=False, variance_factors=[b.variance_factor for b in blocks],
-                            covariance=False)
+                            covariance=False, free_scale=any(k[0] == "scale" for k in fit.columns),
+                            scales0=fit.scales, shared_robot_error=fit.robot_sigma is not None,
+                            robot_sigma0=fit.robot_sigma)
             except ValueError:
                 continue
             answers.append(f)

@@ -294,3 +294,40 @@ def test_two_cell_cameras_sharing_a_board_on_the_flange_within_sigma(hand_board_
     X, C = r.relative[("cell_a", "cell_b")]
     assert _nees(X, C, relative_truth(truth, "cell_a", "cell_b")) < BOUND
     assert np.linalg.norm(tangent(r.X_board, np.asarray(truth["X_ET"]))[3:]) < 0.002
+
+
+def _scaled_spec(spec: str, factor: float) -> str:
+    kind, grid, square, marker, *rest = spec.split(":")
+    return ":".join([kind, grid, f"{float(square) * factor:.9g}", f"{float(marker) * factor:.9g}",
+                     *rest])
+
+
+def test_a_board_printed_half_a_percent_large_is_answered_with_both_readings(rig):
+    """The print is 0.5 % larger than declared (or — the same pixels — the robot's translations
+    0.5 % long): the joint fit's board scale finds the factor, the rig WARNs naming it, and every
+    answer (each camera, the board, the camera-to-camera transform) covers both readings."""
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist", "wrist2", "cell"]), out / "robot_poses.tum",
+                      _scaled_spec(truth["target"], 1 / 1.005), options=OPTIONS)
+    assert r.verdict.status == "WARN", r.lines()
+    rig_scale = [w for w in r.verdict.reasons if w.code == "target_scale"
+                 and "jointly" in w.message]
+    assert rig_scale and "1.005" in rig_scale[0].message, r.lines()
+    s = r.board_scale
+    assert s["significant"] and abs(s["factor"] - 1.005) < max(4 * s["std"], 0.001), s
+    _check_within_sigma(r, truth)
+    for name, c in r.cameras.items():
+        # Both readings are held and the answer lies between them (their midpoint).
+        p, q = c.readings["print"][:3, 3], c.readings["robot"][:3, 3]
+        assert np.allclose(c.X[:3, 3], 0.5 * (p + q)) and np.allclose(q, p / s["factor"]), name
+        assert "readings" in r.to_json()["cameras"][name]
+    X, C = r.relative[("wrist", "wrist2")]
+    assert _nees(X, C, relative_truth(truth, "wrist", "wrist2")) < BOUND
+
+
+def test_the_board_scale_is_not_named_when_the_print_is_right(rig):
+    out, truth = rig
+    r = calibrate_rig(_cams(out, truth, ["wrist", "wrist2", "cell"]), out / "robot_poses.tum",
+                      truth["target"], options=OPTIONS)
+    assert not r.board_scale["significant"] and abs(r.board_scale["factor"] - 1) < 0.002
+    assert not any(w.code in ("target_scale", "target_size") for w in r.verdict.reasons)
